@@ -1,0 +1,1 @@
+"""jaxlp: the 3LP walking model, periodic gaits, constrained DLQR and time projection in JAX."""
