@@ -144,6 +144,22 @@ def test_too_close_and_degenerate_targets_are_finite(fns, side):
 
 
 @pytest.mark.parametrize("side", SIDES)
+def test_unreachable_orientation_is_finite(side):
+    """Foot rolled 90 degrees under a bent leg: ankle roll beyond reach, clamped."""
+    hip = kin.leg_fk(jnp.zeros(6), side).hip_m
+    rot = kin.rot_x(jnp.asarray(np.pi / 2))
+    target = hip + jnp.array([0.0, 0.0, -0.35])
+
+    def loss(p, r):
+        return jnp.sum(kin.leg_ik(p, r, side) ** 2)
+
+    q = kin.leg_ik(target, rot, side)
+    g_pos, g_rot = jax.grad(loss, argnums=(0, 1))(target, rot)
+    assert np.all(np.isfinite(q)) and np.all(np.isfinite(g_pos)) and np.all(np.isfinite(g_rot))
+    assert abs(float(q[4])) == pytest.approx(np.pi / 2, abs=1e-3)
+
+
+@pytest.mark.parametrize("side", SIDES)
 @pytest.mark.parametrize("reach_factor", [1.0, 2.0])
 def test_straight_knee_gradients_finite(side, reach_factor):
     hip = kin.leg_fk(jnp.zeros(6), side).hip_m
