@@ -136,6 +136,7 @@ def _rpy_to_quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
 class _Writer:
     def __init__(self) -> None:
         self.lines: list[str] = []
+        self.joint_order: list[str] = []  # hinge joints in tree (qpos) order
 
     def add(self, depth: int, text: str) -> None:
         self.lines.append("  " * depth + text)
@@ -188,6 +189,7 @@ def _body(w: _Writer, depth: int, name: str, links: dict, joints: list[dict], jo
     if joint_row is None:
         w.add(depth + 1, '<freejoint name="root"/>')
     elif joint_row["type"] == "revolute":
+        w.joint_order.append(joint_row["joint"])
         axis = [joint_row["axis_x"], joint_row["axis_y"], joint_row["axis_z"]]
         arm = LINK_ARMATURE_KGM2 if joint_row["joint"] in SEA_JOINTS else ROTOR_INERTIA_NMS2_PER_RAD
         w.add(depth + 1, f'<joint name="{joint_row["joint"]}" axis="{_vec(axis)}" '
@@ -229,7 +231,6 @@ def build_xml(links_csv: Path | None = None, joints_csv: Path | None = None) -> 
     """
     links = read_links(links_csv)
     joints = read_joints(joints_csv)
-    revolute = [j for j in joints if j["type"] == "revolute"]
     w = _Writer()
     w.add(0, '<mujoco model="coman">')
     w.add(1, '<compiler angle="radian" inertiafromgeom="false" autolimits="true"/>')
@@ -251,9 +252,10 @@ def build_xml(links_csv: Path | None = None, joints_csv: Path | None = None) -> 
     w.add(1, "<worldbody>")
     _body(w, 2, "Waist", links, joints, None)
     w.add(1, "</worldbody>")
+    # One torque motor per hinge, in qpos order: actuator i drives qpos[7 + i].
     w.add(1, "<actuator>")
-    for j in revolute:
-        w.add(2, f'<motor name="{j["joint"]}" joint="{j["joint"]}"/>')
+    for name in w.joint_order:
+        w.add(2, f'<motor name="{name}" joint="{name}"/>')
     w.add(1, "</actuator>")
     w.add(1, "</mujoco>")
     coman = "\n".join(w.lines) + "\n"
