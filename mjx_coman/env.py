@@ -205,6 +205,10 @@ def standing_posture(knee_rad: float = STANDING_KNEE_RAD) -> tuple[np.ndarray, n
 def reset(key: jax.Array, params: EnvParams, knee_rad: float = STANDING_KNEE_RAD) -> EnvState:
     """Standing crouched on flat feet, at rest, motors at the link angles.
 
+    The robot is placed with its soles on the floor; contact forces appear
+    from the first :func:`step` on (the reset readings have zero F/T and no
+    contact flags).
+
     Args:
         key: PRNG key for the sensor noise stream.
         params: environment parameters.
@@ -214,7 +218,9 @@ def reset(key: jax.Array, params: EnvParams, knee_rad: float = STANDING_KNEE_RAD
     q0 = jnp.asarray(q0, jnp.float32)
     data = mjx.make_data(params.model)
     data = data.replace(qpos=jnp.concatenate([jnp.asarray(root, jnp.float32), q0]))
-    data = mjx.forward(params.model, data)
+    # Kinematics only (cheap to compile): the first step runs the full forward
+    # dynamics, so the reset readings show no contact force yet.
+    data = mjx.kinematics(params.model, data)
     act = init_actuator_state(q0, jnp.zeros(NU), q0)
     sens = init_sensor_state(q0)
     key, sub = jax.random.split(key)
