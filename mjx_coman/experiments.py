@@ -175,7 +175,9 @@ def knee_step(step_rad: float = 1.0, duration_s: float = 0.8, params: EnvParams 
         proxy and the seed's bound ``supply / (alpha + beta A_c)``.
     """
     params = params or make_env_params()
-    model = params.model.replace(opt=params.model.opt.replace(gravity=jnp.zeros(3)))
+    # ``gravity * 0`` keeps the array committed to the device like the other
+    # model leaves, so the compiled chunk is reused (a fresh jnp.zeros recompiles).
+    model = params.model.replace(opt=params.model.opt.replace(gravity=params.model.opt.gravity * 0.0))
     params = dataclasses.replace(params, model=model)
     q0, _ = standing_posture()
     s0 = _reset(jax.random.PRNGKey(0), params)
