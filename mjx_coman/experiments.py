@@ -30,6 +30,7 @@ import numpy as np
 
 from mjx_coman.actuators import JOINT_INDEX, NU, make_actuator_params, series_stiffness_nm_per_rad
 from mjx_coman.env import EnvParams, EnvState, make_command, make_env_params, reset, standing_posture, step
+from mjx_coman.sensors import model_ids
 
 
 def _record(s: EnvState) -> dict:
@@ -37,6 +38,7 @@ def _record(s: EnvState) -> dict:
     return dict(
         time_s=s.time_s,
         pelvis_m=d.qpos[:3],
+        root_quat=d.qpos[3:7],
         q_rad=d.qpos[7:],
         motor_rad=s.actuator.motor_angle_rad,
         motor_vel=s.actuator.motor_vel_rad_per_s,
@@ -109,19 +111,20 @@ def stand(duration_s: float = 10.0, params: EnvParams | None = None, seed: int =
         out[f"{j}_spring_deflection_rad"] = float(rec["motor_rad"][-1, i] - rec["q_rad"][-1, i])
         out[f"{j}_spring_torque_nm"] = float(k[i] * (rec["motor_rad"][-1, i] - rec["q_rad"][-1, i]))
     out["series"] = dict(t=rec["time_s"][::50], pelvis_m=rec["pelvis_m"][::50], q_rad=rec["q_rad"][::50],
-                         motor_rad=rec["motor_rad"][::50])
+                         motor_rad=rec["motor_rad"][::50], root_quat=rec["root_quat"][::50])
     out["commanded_rad"] = np.asarray(q0)
     return out
 
 
 def ankle_stiffness(max_pull_n: float = 7.0, ramp_s: float = 4.0, hold_s: float = 1.0,
-                    params: EnvParams | None = None, settle_s: float = 1.0) -> dict:
+                    params: EnvParams | None = None, settle_s: float = 2.0) -> dict:
     """Pull the upper torso forward with a force ramping to ``max_pull_n`` (seed Figure 20).
 
     The robot first settles for ``settle_s`` (baseline), then the force ramps
     linearly over ``ramp_s`` and is held for ``hold_s``. Per ankle, the
-    effective stiffness is the change of the ankle pitch torque (F/T moment
-    about the ankle axis) over the change of the ankle pitch link angle.
+    effective stiffness is the least-squares slope of the ankle pitch torque
+    (F/T moment about the ankle axis) against the ankle pitch link angle from
+    half-way through the settling on; the end-point changes are reported too.
 
     Returns:
         pelvis and torso displacement (m), per-ankle torque, angle and
@@ -138,17 +141,20 @@ def ankle_stiffness(max_pull_n: float = 7.0, ramp_s: float = 4.0, hold_s: float 
     _, rec = run(params, s0, np.broadcast_to(q0, (force.size, NU)), forces)
     b, e = n0 - 1, -1
     out = dict(max_pull_n=max_pull_n,
-               pelvis_displacement_m=float(rec["pelvis_m"][e, 0] - rec["pelvis_m"][b, 0]))
+               pelvis_displacement_m=float(np.mean(rec["pelvis_m"][e - 50:, 0]) - np.mean(rec["pelvis_m"][b - 50:b, 0])))
     stiff = []
     for side, ft in (("R", "ft_r"), ("L", "ft_l")):
         i = JOINT_INDEX[side + "AnkSag"]
         # The F/T site is 0.065 m below the ankle axis: moment about the axis = m_y - f_x * 0.065.
         tau = rec[ft][:, 4] - rec[ft][:, 0] * 0.065
         dtau = float(np.mean(tau[e - 50:]) - np.mean(tau[b - 50:b]))
-        dq = float(rec["q_rad"][e, i] - rec["q_rad"][b, i])
+        dq = float(np.mean(rec["q_rad"][e - 50:, i]) - np.mean(rec["q_rad"][b - 50:b, i]))
         out[f"{side}_ankle_torque_change_nm"] = dtau
         out[f"{side}_ankle_angle_change_rad"] = dq
-        out[f"{side}_effective_stiffness_nm_per_rad"] = abs(dtau / dq) if dq else float("inf")
+        # Slope of torque against angle over the pull (least squares): robust to the
+        # slow body sway that the end points alone would pick up.
+        slope = np.polyfit(rec["q_rad"][n0 // 2:, i], tau[n0 // 2:], 1)[0]
+        out[f"{side}_effective_stiffness_nm_per_rad"] = float(abs(slope))
         stiff.append(out[f"{side}_effective_stiffness_nm_per_rad"])
     out["mean_effective_stiffness_nm_per_rad"] = float(np.mean(stiff))
     k_series = np.asarray(series_stiffness_nm_per_rad(params.actuator))[JOINT_INDEX["RAnkSag"]]
@@ -156,10 +162,16 @@ def ankle_stiffness(max_pull_n: float = 7.0, ramp_s: float = 4.0, hold_s: float 
     out["position_loop_nm_per_rad"] = float(
         np.asarray(params.actuator.kp_v_per_rad / params.actuator.beta_v_per_nm)[JOINT_INDEX["RAnkSag"]])
     out["series_prediction_nm_per_rad"] = float(k_series)
-    # The paper's estimate: lean angle from the pelvis displacement over the hip height.
+    # The seed's estimate: lean angle from the pelvis displacement over the hip
+    # height, pull moment F h over the lean, shared by two ankles; it leaves out
+    # the toppling moment of gravity (m g h_com per radian), so it reads lower
+    # than the ankles' own stiffness.
     hip_h = float(np.asarray(s0.data.qpos[2]))
+    pull_h = float(np.asarray(s0.data.site_xpos[model_ids()["torso_site"], 2]))
     lean = out["pelvis_displacement_m"] / hip_h
     out["paper_style_lean_rad"] = lean
+    out["pull_height_m"] = pull_h
+    out["paper_style_stiffness_nm_per_rad"] = max_pull_n * pull_h / (2 * lean) if lean else float("inf")
     out["series"] = dict(t=rec["time_s"][::25], force_n=force[::25], pelvis_x_m=rec["pelvis_m"][::25, 0] - rec["pelvis_m"][0, 0])
     return out
 
