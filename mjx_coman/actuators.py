@@ -108,7 +108,7 @@ def _check(name: str, value, *, positive: bool) -> None:
 
 def _per_joint(value) -> jax.Array:
     arr = np.broadcast_to(np.asarray(value, dtype=float), (NU,))
-    return jnp.asarray(arr, dtype=jnp.float32)
+    return jnp.asarray(arr, dtype=float)
 
 
 def make_actuator_params(
@@ -159,8 +159,8 @@ def make_actuator_params(
         rotor_inertia_nms2_per_rad=_per_joint(rotor_inertia_nms2_per_rad),
         friction_nms_per_rad=_per_joint(friction_nms_per_rad),
         coulomb_nm=_per_joint(coulomb_nm),
-        coulomb_eps_rad_per_s=jnp.asarray(coulomb_eps_rad_per_s, jnp.float32),
-        supply_v=jnp.asarray(supply_v, jnp.float32),
+        coulomb_eps_rad_per_s=jnp.asarray(coulomb_eps_rad_per_s, float),
+        supply_v=jnp.asarray(supply_v, float),
         spring_stiffness_nm_per_rad=_per_joint(spring_stiffness_nm_per_rad),
         spring_damping_nms_per_rad=_per_joint(spring_damping_nms_per_rad),
         kp_v_per_rad=_per_joint(kp),

@@ -107,8 +107,8 @@ class EnvState(NamedTuple):
 
 def make_command(target, torso_force_n=None, voltage_mode: bool = False) -> Command:
     """A :class:`Command` with the force defaulting to zero."""
-    target = jnp.asarray(target, jnp.float32)
-    force = jnp.zeros(3, jnp.float32) if torso_force_n is None else jnp.asarray(torso_force_n, jnp.float32)
+    target = jnp.asarray(target, float)
+    force = jnp.zeros(3, float) if torso_force_n is None else jnp.asarray(torso_force_n, float)
     return Command(target, force, jnp.asarray(voltage_mode))
 
 
@@ -215,9 +215,10 @@ def reset(key: jax.Array, params: EnvParams, knee_rad: float = STANDING_KNEE_RAD
         knee_rad: knee flexion of the posture (static).
     """
     q0, root = standing_posture(float(knee_rad))
-    q0 = jnp.asarray(q0, jnp.float32)
+    dtype = params.model.opt.timestep.dtype  # float32, or float64 under jax_enable_x64
+    q0 = jnp.asarray(q0, dtype)
     data = mjx.make_data(params.model)
-    data = data.replace(qpos=jnp.concatenate([jnp.asarray(root, jnp.float32), q0]))
+    data = data.replace(qpos=jnp.concatenate([jnp.asarray(root, dtype), q0]))
     # Kinematics only (cheap to compile): the first step runs the full forward
     # dynamics, so the reset readings show no contact force yet.
     data = mjx.kinematics(params.model, data)
@@ -225,7 +226,7 @@ def reset(key: jax.Array, params: EnvParams, knee_rad: float = STANDING_KNEE_RAD
     sens = init_sensor_state(q0)
     key, sub = jax.random.split(key)
     sens, readings = read_sensors(params.sensor, sens, sub, data, act.motor_angle_rad, act.motor_vel_rad_per_s)
-    return EnvState(data, act, sens, readings, key, jnp.asarray(0.0, jnp.float32))
+    return EnvState(data, act, sens, readings, key, jnp.asarray(0.0, dtype))
 
 
 def torso_wrench(data: mjx.Data, force_n: jax.Array) -> jax.Array:

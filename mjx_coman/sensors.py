@@ -106,7 +106,7 @@ def make_sensor_params(
         arr = np.asarray(v, float)
         if not np.all(np.isfinite(arr)) or np.any(arr < 0):
             raise ValueError(f"{name} must be finite and non-negative, got {arr.tolist()}")
-    f32 = jnp.float32
+    f32 = float  # JAX's default float (float64 under jax_enable_x64)
     return SensorParams(
         encoder_resolution_rad=jnp.asarray(2 * np.pi / 2**encoder_bits, f32),
         encoder_offset_rad=jnp.asarray(off, f32),
