@@ -78,6 +78,9 @@ class Command(NamedTuple):
         target: desired motor angles (rad), or voltages (V) if ``voltage_mode``, (NU,).
         torso_force_n: external force on the upper torso (world frame), (3,).
         voltage_mode: bool scalar; True sends ``target`` as raw voltages.
+
+    ``target`` goes through the transport delay (``ActuatorParams.delay_ticks``);
+    ``voltage_mode`` and ``torso_force_n`` act at once.
     """
 
     target: jax.Array

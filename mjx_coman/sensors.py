@@ -30,7 +30,11 @@ EFC_ROWS_PER_CONTACT = 4  # condim 3, pyramidal cone
 
 @functools.lru_cache(maxsize=1)
 def model_ids() -> dict[str, int]:
-    """Static MuJoCo ids used by the sensors and the environment."""
+    """Static MuJoCo ids used by the sensors and the environment.
+
+    Taken from the packaged model; a custom ``MjModel`` passed to
+    ``make_env_params`` must keep the same bodies and sites in the same order.
+    """
     from mjx_coman import load_model
 
     m = load_model()
