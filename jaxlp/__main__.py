@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 
+import jaxlp  # noqa: F401  (sets the XLA CPU flags before JAX starts)
 import jax
 
 from jaxlp.presets import ROBOTS
