@@ -102,6 +102,10 @@ def test_joint_targets_reproduce_cartesian_targets(fns, setup, speed, d):
     for s in legs:
         feet_rot = jnp.einsum("nij,njk->nik", rot, fk[s].foot_rot)
         np.testing.assert_allclose(feet_rot, np.broadcast_to(np.eye(3), feet_rot.shape), atol=ANGLE_TOL_RAD)
+    # within the joint limits, stance knee still bent (the IK does not clamp) at the seed's speeds
+    for s, lim in (("left", kin.LEFT_LEG_LIMITS_RAD), ("right", kin.RIGHT_LEG_LIMITS_RAD)):
+        assert np.all(q[:, legs[s]] >= lim[0]) and np.all(q[:, legs[s]] <= lim[1])
+    assert q[:, [JOINT_INDEX["LKneeSag"], JOINT_INDEX["RKneeSag"]]].min() > 0.05
     # waist and arms stay at the standing posture
     others = [i for i, n in enumerate(JOINT_NAMES) if i not in legs["left"] + legs["right"]]
     np.testing.assert_array_equal(q[:, others], np.broadcast_to(np.asarray(setup[2])[others], (N_TIMES, len(others))))
