@@ -60,13 +60,10 @@ def test_torso_pull_leans_the_robot_forward(env_params):
     assert res["mean_effective_stiffness_nm_per_rad"] == pytest.approx(res["series_prediction_nm_per_rad"], rel=0.3)
 
 
-@pytest.fixture(scope="module")
-def batch16(env_params, reset_state, standing_q):
-    n, ticks = 16, 100
-    springs = np.linspace(150.0, 600.0, n)
-    acts = [make_actuator_params(spring_stiffness_nm_per_rad=k, delay_s=0.002 * (i % 12)) for i, k in enumerate(springs)]
-    stack = lambda *xs: jnp.stack(xs)
-    params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(stack, *acts),
+def _standing_batch(env_params, reset_state, standing_q, acts, ticks):
+    """Roll out one standing robot per actuator parameter set, in one vmap."""
+    n = len(acts)
+    params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(lambda *x: jnp.stack(x), *acts),
                                  sensor=jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), env_params.sensor))
     states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), reset_state)
     cmd = env.make_command(standing_q)
@@ -74,12 +71,18 @@ def batch16(env_params, reset_state, standing_q):
     @jax.jit
     def run(p, s):
         def one(pp, ss):
-            def body(c, _):
-                return env.step(pp, c, cmd), None
-            return jax.lax.scan(body, ss, None, length=ticks)[0]
+            return jax.lax.scan(lambda c, _: (env.step(pp, c, cmd), None), ss, None, length=ticks)[0]
         return jax.vmap(one, in_axes=(env.batch_axes(p), 0))(p, s)
 
-    return springs, run(params, states)
+    return run(params, states)
+
+
+@pytest.fixture(scope="module")
+def batch16(env_params, reset_state, standing_q):
+    n = 16
+    springs = np.linspace(150.0, 600.0, n)
+    acts = [make_actuator_params(spring_stiffness_nm_per_rad=k, delay_s=0.002 * (i % 12)) for i, k in enumerate(springs)]
+    return springs, _standing_batch(env_params, reset_state, standing_q, acts, ticks=100)
 
 
 def test_batch_of_16_different_robots(batch16, reset_state):
@@ -98,18 +101,7 @@ def test_batch_of_256_standing_rollouts_two_seconds(env_params, reset_state, sta
     key = jax.random.PRNGKey(3)
     springs = np.asarray(jax.random.uniform(key, (n,), minval=250.0, maxval=550.0))
     acts = [make_actuator_params(spring_stiffness_nm_per_rad=float(k)) for k in springs]
-    params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(lambda *x: jnp.stack(x), *acts),
-                                 sensor=jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), env_params.sensor))
-    states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), reset_state)
-    cmd = env.make_command(standing_q)
-
-    @jax.jit
-    def run(p, s):
-        def one(pp, ss):
-            return jax.lax.scan(lambda c, _: (env.step(pp, c, cmd), None), ss, None, length=ticks)[0]
-        return jax.vmap(one, in_axes=(env.batch_axes(p), 0))(p, s)
-
-    final = run(params, states)
+    final = _standing_batch(env_params, reset_state, standing_q, acts, ticks)
     drift = np.linalg.norm(np.asarray(final.data.qpos[:, :2] - reset_state.data.qpos[:2]), axis=1)
     assert np.all(drift < 0.02)
 
