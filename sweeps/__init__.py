@@ -1,0 +1,7 @@
+"""Push-recovery sweeps: basin maps over push timing x impulse, controller comparisons.
+
+``coman-sweep map`` / ``coman-sweep compare`` (see :mod:`sweeps.cli`). Modules:
+:mod:`sweeps.grid` (configuration, grid), :mod:`sweeps.models` (rollout
+registry), :mod:`sweeps.runner` (chunks, sharding, resume), :mod:`sweeps.report`
+(csv, png, json). Importing this package does not import JAX.
+"""

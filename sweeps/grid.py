@@ -1,0 +1,194 @@
+"""Sweep configuration and the push grid (phase x impulse, one direction).
+
+A sweep is a frozen :class:`SweepConfig` (plain Python values, hashable, so it
+keys the jit cache and the results directory) and the rollouts it implies:
+row ``i = phase_index * n_impulses + impulse_index``. Every rollout draws its
+randomness from ``fold_in(PRNGKey(seed), i)``, so results do not depend on the
+chunk size, the number of devices or the order chunks run in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+DIRECTIONS_RAD = {"forward": 0.0, "left": math.pi / 2, "backward": math.pi, "right": -math.pi / 2}
+CONTROLLERS = ("time-projection", "dlqr", "open-loop")
+
+
+class GridError(ValueError):
+    """A bad sweep configuration (the command line turns it into exit status 2)."""
+
+
+def parse_phases(text: str) -> tuple[float, ...]:
+    """``"8"``: 8 phases evenly spaced in [0, 1); ``"0,0.5,0.75"``: those phases.
+
+    Raises:
+        GridError: an empty grid or a phase outside [0, 1).
+    """
+    text = str(text).strip()
+    try:
+        if "," not in text and "." not in text:
+            n = int(text)
+            if n < 1:
+                raise GridError(f"--phases must be a count >= 1 or a list in [0, 1), got {text!r}")
+            return tuple(float(k) / n for k in range(n))
+        vals = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise GridError(f"--phases must be a count or comma-separated numbers, got {text!r}") from None
+    if not vals:
+        raise GridError(f"--phases gives an empty grid: {text!r}")
+    if any(not (0.0 <= v < 1.0) for v in vals):
+        raise GridError(f"--phases must lie in [0, 1), got {text!r}")
+    return vals
+
+
+def parse_impulses(text: str) -> tuple[float, ...]:
+    """Impulses in N s: ``"start:stop:num"`` (inclusive, evenly spaced) or ``"1,2.5,4"``.
+
+    Raises:
+        GridError: an empty grid, a malformed range, a negative or non-finite impulse.
+    """
+    text = str(text).strip()
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise GridError(f"--impulses range must be start:stop:num, got {text!r}")
+            start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
+            if num < 1:
+                raise GridError(f"--impulses gives an empty grid: {text!r}")
+            vals = tuple(float(v) for v in np.linspace(start, stop, num))
+        else:
+            vals = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise GridError(f"--impulses must be start:stop:num or comma-separated numbers (N s), got {text!r}") from None
+    if not vals:
+        raise GridError(f"--impulses gives an empty grid: {text!r}")
+    if any(not math.isfinite(v) for v in vals):
+        raise GridError(f"--impulses must be finite, got {text!r}")
+    if any(v < 0 for v in vals):
+        raise GridError(f"--impulses must be non-negative (use --direction for the sign), got {text!r}")
+    return vals
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepConfig:
+    """Everything that decides a sweep's results (plain values, hashable).
+
+    Attributes:
+        model: rollout model name (``"3lp"``; see :mod:`sweeps.models`).
+        controller: ``"time-projection"``, ``"dlqr"`` or ``"open-loop"``.
+        robot: 3LP parameter preset (:func:`jaxlp.presets.get_params`).
+        phases: push start times as fractions of the step, in [0, 1).
+        impulses_ns: push impulses, N s (force = impulse / duration).
+        direction: ``forward``, ``backward``, ``left`` or ``right``.
+        push_step: index of the step during which the push starts.
+        push_duration_s: push duration, s.
+        speed_mps: commanded walking speed (0: in place).
+        step_time_s: phase duration, s.
+        n_steps: phases simulated per rollout.
+        noise_std_m: sensor noise std on relative positions, m (sensing on if > 0 or bias).
+        bias_m: constant sagittal pelvis position bias, m.
+        randomize_mass_pct: per-rollout uniform +-% on ``m1`` and ``m2`` (0: off).
+        randomize_leg_pct: per-rollout uniform +-% on the leg length ``h1`` (``h2``, ``I2`` follow).
+        seed: PRNG seed.
+        chunk: rollouts per chunk (one jitted call; also the resume unit).
+        x64: simulate in 64-bit floats.
+    """
+
+    model: str = "3lp"
+    controller: str = "time-projection"
+    robot: str = "coman"
+    phases: tuple[float, ...] = tuple(k / 16 for k in range(16))
+    impulses_ns: tuple[float, ...] = tuple(float(v) for v in np.linspace(0.0, 20.0, 41))
+    direction: str = "forward"
+    push_step: int = 2
+    push_duration_s: float = 0.1
+    speed_mps: float = 0.0
+    step_time_s: float = 0.4
+    n_steps: int = 10
+    noise_std_m: float = 0.0
+    bias_m: float = 0.0
+    randomize_mass_pct: float = 0.0
+    randomize_leg_pct: float = 0.0
+    seed: int = 0
+    chunk: int = 256
+    x64: bool = False
+
+    def validate(self) -> "SweepConfig":
+        """Raise :class:`GridError` naming the first bad value; return ``self``."""
+        if self.controller not in CONTROLLERS:
+            raise GridError(f"unknown controller {self.controller!r}; choose one of {', '.join(CONTROLLERS)}")
+        if self.direction not in DIRECTIONS_RAD:
+            raise GridError(f"unknown direction {self.direction!r}; choose one of {', '.join(DIRECTIONS_RAD)}")
+        if not self.phases or not self.impulses_ns:
+            raise GridError("the grid is empty (no phases or no impulses)")
+        if any(v < 0 or not math.isfinite(v) for v in self.impulses_ns):
+            raise GridError(f"impulses must be finite and non-negative, got {list(self.impulses_ns)}")
+        if any(not (0.0 <= v < 1.0) for v in self.phases):
+            raise GridError(f"phases must lie in [0, 1), got {list(self.phases)}")
+        for name in ("push_duration_s", "step_time_s"):
+            if not getattr(self, name) > 0:
+                raise GridError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("noise_std_m", "randomize_mass_pct", "randomize_leg_pct"):
+            if not getattr(self, name) >= 0:
+                raise GridError(f"{name} must be non-negative, got {getattr(self, name)}")
+        if max(self.randomize_mass_pct, self.randomize_leg_pct) >= 50:
+            raise GridError("randomisation must stay below 50 %")
+        if self.push_step < 0 or self.push_step >= self.n_steps:
+            raise GridError(f"push_step must lie in [0, n_steps={self.n_steps}), got {self.push_step}")
+        if self.chunk < 1:
+            raise GridError(f"chunk must be >= 1, got {self.chunk}")
+        return self
+
+    @property
+    def sensing(self) -> bool:
+        return self.noise_std_m > 0 or self.bias_m != 0
+
+    @property
+    def n_rollouts(self) -> int:
+        return len(self.phases) * len(self.impulses_ns)
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["phases"], d["impulses_ns"] = list(self.phases), list(self.impulses_ns)
+        return d
+
+    def hash(self) -> str:
+        """A short digest of every field (the results directory's identity)."""
+        blob = json.dumps(self.to_dict(), sort_keys=True).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+class GridInputs(NamedTuple):
+    """Per-rollout inputs, each of shape (n,).
+
+    Attributes:
+        index: global rollout index (also the PRNG stream).
+        phase: push start as a fraction of the step.
+        impulse_ns: push impulse, N s.
+        direction_rad: push heading, rad.
+    """
+
+    index: np.ndarray
+    phase: np.ndarray
+    impulse_ns: np.ndarray
+    direction_rad: np.ndarray
+
+
+def grid_inputs(config: SweepConfig) -> GridInputs:
+    """All rollouts of a sweep, phase-major."""
+    ph, imp = np.meshgrid(np.asarray(config.phases, float), np.asarray(config.impulses_ns, float), indexing="ij")
+    n = ph.size
+    return GridInputs(
+        index=np.arange(n, dtype=np.int32),
+        phase=ph.ravel(),
+        impulse_ns=imp.ravel(),
+        direction_rad=np.full(n, DIRECTIONS_RAD[config.direction]),
+    )

@@ -1,0 +1,193 @@
+"""Sweep outputs: results.npz, results.csv, basin.png and summary.json; the controller comparison.
+
+Statistics never see a numerically bad rollout as a number: such rows carry
+``reason == "nan"``, count as not recovered and are left out of maxima.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from sweeps.grid import SweepConfig
+from sweeps.runner import SweepRun, save_bytes_atomic, save_npz_atomic, save_text_atomic
+
+CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
+               "max_abs_footstep_adjustment_m", "fall_time_s", "reason")
+
+
+def recovered(results: dict) -> np.ndarray:
+    """Rollouts that neither fell nor went numerically bad."""
+    return ~np.asarray(results["fell"], bool) & ~np.asarray(results["nan"], bool)
+
+
+def _max_or_none(values: np.ndarray):
+    vals = np.asarray(values, float)
+    vals = vals[np.isfinite(vals)]
+    return float(np.max(vals)) if vals.size else None
+
+
+def per_phase(config: SweepConfig, results: dict) -> list[dict]:
+    """Per push timing: the largest impulse recovered (N s and N) and the recovery rate."""
+    ok = recovered(results)
+    rows = []
+    for ph in config.phases:
+        sel = np.isclose(results["phase"], ph)
+        best = _max_or_none(np.where(ok[sel], results["impulse_ns"][sel], np.nan))
+        rows.append(dict(
+            phase=float(ph), max_recovered_impulse_ns=best,
+            max_recovered_force_n=None if best is None else best / config.push_duration_s,
+            recovery_rate=float(np.mean(ok[sel])), nan_rollouts=int(np.sum(results["nan"][sel])),
+        ))
+    return rows
+
+
+def summarize(run: SweepRun) -> dict:
+    """The summary.json content of a sweep."""
+    cfg, res = run.config, run.results
+    ok = recovered(res)
+    t = run.timing
+    return dict(
+        model=cfg.model, controller=cfg.controller, direction=cfg.direction,
+        push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
+        rollouts=int(cfg.n_rollouts), recovery_rate=float(np.mean(ok)),
+        fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
+        max_abs_footstep_adjustment_m=_max_or_none(res["max_abs_footstep_adjustment_m"][ok]),
+        per_phase=per_phase(cfg, res),
+        wall_s=t["wall_s"], compile_s=t["compile_s"], run_s=t["run_s"],
+        rollouts_per_s=t["rollouts_per_s"], env_steps_per_s=t["env_steps_per_s"],
+        env_step_s=cfg.step_time_s / max(1, t["ticks_per_rollout"] // cfg.n_steps),
+        ticks_per_rollout=t["ticks_per_rollout"], rollouts_run=t["rollouts_run"],
+        rollouts_resumed=t["rollouts_resumed"], device_count=t["device_count"],
+        process_count=t["process_count"], devices=t["devices"],
+        seed=cfg.seed, config_hash=cfg.hash(), config=cfg.to_dict(),
+    )
+
+
+def results_csv(config: SweepConfig, results: dict) -> str:
+    """One CSV row per rollout."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(CSV_COLUMNS)
+    force = np.asarray(results["impulse_ns"]) / config.push_duration_s
+    for i in range(len(results["index"])):
+        w.writerow([
+            int(results["index"][i]), f"{results['phase'][i]:.6g}", f"{results['impulse_ns'][i]:.6g}",
+            f"{force[i]:.6g}", f"{results['direction_rad'][i]:.6g}", int(results["fell"][i]),
+            int(results["steps_to_recover"][i]), f"{results['max_abs_footstep_adjustment_m'][i]:.6g}",
+            f"{results['fall_time_s'][i]:.6g}", results["reason"][i],
+        ])
+    return buf.getvalue()
+
+
+def _grid(config: SweepConfig, values: np.ndarray) -> np.ndarray:
+    """(n,) phase-major values as (impulses, phases) for plotting."""
+    return np.asarray(values).reshape(len(config.phases), len(config.impulses_ns)).T
+
+
+def plot_basin(ax, config: SweepConfig, results: dict, title: str | None = None) -> None:
+    """Recovered / fell / NaN map over push phase x impulse, with steps-to-recover contours."""
+    from matplotlib.colors import ListedColormap
+
+    ph = np.asarray(config.phases)
+    imp = np.asarray(config.impulses_ns)
+    state = np.where(results["nan"], 2, np.where(recovered(results), 0, 1))
+    cmap = ListedColormap(["#7fc97f", "#f0027f", "#999999"])
+    dph = 1.0 / len(ph) if len(ph) > 1 else 1.0
+    x_edges = np.append(ph, ph[-1] + (ph[-1] - ph[-2] if len(ph) > 1 else dph))
+    y_edges = _edges(imp)
+    ax.pcolormesh(x_edges, y_edges, _grid(config, state), cmap=cmap, vmin=-0.5, vmax=2.5, shading="flat")
+    steps = _grid(config, np.where(recovered(results) & (results["steps_to_recover"] >= 0),
+                                   results["steps_to_recover"], np.nan)).astype(float)
+    if len(ph) > 1 and len(imp) > 1 and np.isfinite(steps).sum() > 3:
+        levels = np.arange(np.nanmin(steps), np.nanmax(steps) + 1)
+        if levels.size > 1:
+            cs = ax.contour(ph + 0.5 * np.diff(x_edges), imp, steps, levels=levels, colors="k", linewidths=0.8)
+            ax.clabel(cs, fmt=lambda v: f"{v:.0f} st", fontsize=7)
+    ax.set_xlabel(f"push start, fraction of step {config.push_step} (step {config.step_time_s:g} s)")
+    ax.set_ylabel(f"impulse, N s  ({config.push_duration_s:g} s push: force = impulse / {config.push_duration_s:g} s)")
+    ax.set_xlim(x_edges[0], x_edges[-1])
+    sec = ax.secondary_yaxis("right", functions=(lambda j: j / config.push_duration_s,
+                                                 lambda f: f * config.push_duration_s))
+    sec.set_ylabel("force, N")
+    ax.set_title(title or f"{config.model} / {config.controller}: {config.direction} pushes")
+
+
+def _edges(v: np.ndarray) -> np.ndarray:
+    if len(v) == 1:
+        return np.array([v[0] - 0.5, v[0] + 0.5])
+    mid = 0.5 * (v[1:] + v[:-1])
+    return np.concatenate([[v[0] - (mid[0] - v[0])], mid, [v[-1] + (v[-1] - mid[-1])]])
+
+
+def _legend(fig) -> None:
+    from matplotlib.patches import Patch
+
+    fig.legend(handles=[Patch(color="#7fc97f", label="recovered"), Patch(color="#f0027f", label="fell"),
+                        Patch(color="#999999", label="numerically bad (NaN)")],
+               loc="lower center", ncol=3, frameon=False)
+
+
+def save_basin_png(path: Path, runs: list[SweepRun]) -> None:
+    """One basin map per run, side by side, to ``path`` (Agg backend)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.8 * len(runs), 4.8), squeeze=False, sharey=True)
+    for ax, run in zip(axes[0], runs):
+        plot_basin(ax, run.config, run.results)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    _legend(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    save_bytes_atomic(path, buf.getvalue())
+
+
+def write_outputs(out_dir: Path, run: SweepRun) -> dict:
+    """results.npz, results.csv, basin.png and summary.json of one sweep; return the summary."""
+    out_dir = Path(out_dir)
+    save_npz_atomic(out_dir / "results.npz", {k: np.asarray(v) for k, v in run.results.items()})
+    save_text_atomic(out_dir / "results.csv", results_csv(run.config, run.results))
+    save_basin_png(out_dir / "basin.png", [run])
+    summary = summarize(run)
+    save_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
+    return summary
+
+
+def compare_table(runs: list[SweepRun]) -> dict:
+    """Per phase, each controller's largest recovered impulse; overall recovery rates."""
+    cfg = runs[0].config
+    rows = []
+    per = {r.config.controller: per_phase(r.config, r.results) for r in runs}
+    for k, ph in enumerate(cfg.phases):
+        rows.append(dict(phase=float(ph), **{f"{c}_max_recovered_impulse_ns": per[c][k]["max_recovered_impulse_ns"]
+                                            for c in per}))
+    return dict(
+        controllers=list(per), direction=cfg.direction, push_duration_s=cfg.push_duration_s,
+        recovery_rate={r.config.controller: float(np.mean(recovered(r.results))) for r in runs},
+        per_phase=rows,
+        wall_s={r.config.controller: r.timing["wall_s"] for r in runs},
+    )
+
+
+def format_compare_table(table: dict) -> str:
+    """A fixed-width text table: phase, then each controller's largest recovered impulse (N s / N)."""
+    ctrls = table["controllers"]
+    dur = table["push_duration_s"]
+    head = f"{'phase':>6} " + " ".join(f"{c:>22}" for c in ctrls)
+    lines = [f"largest recovered {table['direction']} impulse, N s (force N) for {dur:g} s pushes", head]
+    for row in table["per_phase"]:
+        cells = []
+        for c in ctrls:
+            v = row[f"{c}_max_recovered_impulse_ns"]
+            cells.append(f"{'none':>22}" if v is None else f"{v:>11.2f} ({v / dur:>7.1f})")
+        lines.append(f"{row['phase']:>6.3f} " + " ".join(cells))
+    lines.append("recovery rate " + ", ".join(f"{c} {table['recovery_rate'][c]:.1%}" for c in ctrls))
+    return "\n".join(lines)
