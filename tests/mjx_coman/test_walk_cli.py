@@ -1,0 +1,86 @@
+"""``python -m mjx_coman.walk``: one-line errors with exit status 2, and one real short walk."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from mjx_coman import walk as cli
+
+
+def _run(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "mjx_coman.walk", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture
+def no_build(monkeypatch):
+    """Fail loudly if a bad argument got as far as building the environment."""
+    import mjx_coman.env
+
+    def boom(*a, **k):
+        raise AssertionError("built the environment before validating the arguments")
+
+    monkeypatch.setattr(mjx_coman.env, "make_env_params", boom)
+
+
+@pytest.mark.parametrize(
+    "args,word",
+    [
+        (["--seconds", "-1"], "--seconds"),
+        (["--seconds", "0"], "--seconds"),
+        (["--seconds", "nan"], "--seconds"),
+        (["--speed", "0.5"], "--speed"),
+        (["--speed", "fast"], "--speed"),
+        (["--controller", "mpc"], "mpc"),
+        (["--push-phase", "1.0"], "--push-phase"),
+        (["--push-phase", "-0.1"], "--push-phase"),
+        (["--push-ns", "-3"], "--push-ns"),
+        (["--push-dir", "up"], "up"),
+        (["--push-duration", "0"], "--push-duration"),
+        (["--push-step", "-1"], "--push-step"),
+        (["--push-ns", "4", "--push-step", "30", "--seconds", "2"], "--push-step"),
+        (["--seed", "-2"], "--seed"),
+        (["--plot", "out.txt"], "--plot"),
+        (["--plot", "/no/such/dir/out.png"], "--plot"),
+        (["--bogus"], "--bogus"),
+    ],
+)
+def test_bad_arguments_exit_2_with_one_line(args, word, capsys, no_build):
+    with pytest.raises(SystemExit) as exc:
+        sys.exit(cli.main(args))
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and word in err
+
+
+def test_bad_argument_in_a_subprocess_is_one_line_and_fast():
+    out = _run("--push-phase", "1.5", timeout=120)
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.count("\n") == 1 and "--push-phase" in out.stderr
+
+
+def test_push_force_is_the_impulse_over_the_duration():
+    assert cli.push_force_n(4.0, 0.1, "forward") == pytest.approx((40.0, 0.0, 0.0))
+    assert cli.push_force_n(2.0, 0.2, "right") == pytest.approx((0.0, -10.0, 0.0))
+    assert cli.push_force_n(2.0, 0.2, "backward") == pytest.approx((-10.0, 0.0, 0.0))
+
+
+@pytest.fixture(scope="module")
+def short_walk(tmp_path_factory):
+    png = tmp_path_factory.mktemp("walk") / "walk.png"
+    out = _run("--speed", "0.0", "--seconds", "1.2", "--controller", "closed-loop", "--plot", str(png), "--json")
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout), png
+
+
+def test_short_walk_reports_steps_and_stays_up(short_walk):
+    report, png = short_walk
+    for key in ("fell", "mean_speed_mps", "steps", "steps_to_recover", "max_abs_footstep_adjustment_m", "nan"):
+        assert key in report
+    assert report["fell"] is False and report["nan"] is False
+    assert report["steps"] >= 2  # 1.2 s at 0.4 s per step
+    assert abs(report["mean_speed_mps"]) < 0.1  # in place
+    assert report["steps_to_recover"] is None  # no push
+    assert png.stat().st_size > 10_000
