@@ -69,6 +69,7 @@ def test_push_force_is_the_impulse_over_the_duration():
 
 @pytest.fixture(scope="module")
 def short_walk(tmp_path_factory):
+    pytest.importorskip("mjx_coman.walking.rollout")
     png = tmp_path_factory.mktemp("walk") / "walk.png"
     out = _run("--speed", "0.0", "--seconds", "1.2", "--controller", "closed-loop", "--plot", str(png), "--json")
     assert out.returncode == 0, out.stderr[-2000:]
