@@ -62,24 +62,39 @@ class FilterParams:
         zeta: IIR constant per tick (0.1 at 2 ms on COMAN).
         deadzone: (4,) dead-zone thresholds of the errors
             ``[swing position (m), pelvis position (m), swing velocity (m/s),
-            pelvis velocity (m/s)]``.
+            pelvis velocity (m/s)]``, shared by both axes, or (2, 4): one row
+            per axis (sagittal, lateral).
+        window_samples: length of the velocity moving average in samples, a
+            real number (``None``: the whole ring buffer of :func:`filter_init`,
+            30 samples on COMAN). A fractional window weights the oldest sample
+            by its fractional part (:func:`window_weights`), so the estimate is
+            differentiable in the window and equals the plain moving average at
+            whole numbers.
     """
 
     zeta: jax.Array
     deadzone: jax.Array
+    window_samples: jax.Array | None = None
 
 
-def make_filter_params(zeta: float = 0.1, deadzone=(1e-3, 1e-3, 1e-2, 1e-2)) -> FilterParams:
+def make_filter_params(zeta: float = 0.1, deadzone=(1e-3, 1e-3, 1e-2, 1e-2),
+                       window_samples: float | None = None) -> FilterParams:
     """Validated filter constants. Raises ``ValueError`` naming a bad value."""
     if _is_concrete(zeta):
         z = float(zeta)
         if not 0.0 < z <= 1.0:
             raise ValueError(f"zeta must lie in (0, 1], got {z}")
-    dz = np.asarray(deadzone, float)
-    if dz.shape != (4,):
-        raise ValueError(f"deadzone must have 4 thresholds, got shape {dz.shape}")
-    _check_positive("deadzone", dz)
-    return FilterParams(zeta=jnp.asarray(zeta, float), deadzone=jnp.asarray(dz))
+    if _is_concrete(deadzone):
+        dz = np.asarray(deadzone, float)
+        if dz.shape not in ((4,), (2, 4)):
+            raise ValueError(f"deadzone must have 4 thresholds (or 2 x 4), got shape {dz.shape}")
+        _check_positive("deadzone", dz)
+    if window_samples is not None:
+        if _is_concrete(window_samples) and not float(window_samples) >= 1.0:
+            raise ValueError(f"window_samples must be >= 1, got {float(window_samples)}")
+        window_samples = jnp.asarray(window_samples, float)
+    return FilterParams(zeta=jnp.asarray(zeta, float), deadzone=jnp.asarray(deadzone, float),
+                        window_samples=window_samples)
 
 
 class FilterState(NamedTuple):
@@ -110,8 +125,30 @@ def filter_init(shape: tuple[int, ...], window: int = 30, dtype=float) -> Filter
     )
 
 
-def filter_step(state: FilterState, observed, zeta, dt_s) -> tuple[FilterState, jax.Array, jax.Array]:
+def window_weights(window_samples, ages):
+    """Weights of a moving average over a real-valued window of samples.
+
+    A sample of age ``k`` (0 the newest) gets ``clip(w - k, 0, 1) / w``: the
+    ``floor(w)`` newest samples count fully, the next one by the fractional
+    part of ``w``. At whole ``w`` this is the plain ``w``-sample average; in
+    between it is piecewise linear in ``w``, so ``jax.grad`` reaches the window.
+    ``w`` is clipped to ``[1, len(ages)]``.
+    """
+    w = jnp.clip(window_samples, 1.0, ages.shape[0])
+    return jnp.clip(w - ages, 0.0, 1.0) / w
+
+
+def filter_step(state: FilterState, observed, zeta, dt_s,
+                window_samples=None) -> tuple[FilterState, jax.Array, jax.Array]:
     """One tick of the position IIR, differencing and moving average.
+
+    Args:
+        state: filter memory (:func:`filter_init`).
+        observed: measured relative positions.
+        zeta: IIR constant (eq. 26).
+        dt_s: tick, s.
+        window_samples: a real-valued averaging window (:func:`window_weights`),
+            at most the ring buffer's length; ``None`` averages the whole buffer.
 
     Returns:
         The new state, the filtered positions and the averaged velocities.
@@ -122,7 +159,11 @@ def filter_step(state: FilterState, observed, zeta, dt_s) -> tuple[FilterState, 
     diffs = state.diffs.at[state.index].set(diff)
     window = state.diffs.shape[0]
     new = FilterState(position=pos, diffs=diffs, index=(state.index + 1) % window, started=jnp.ones((), bool))
-    return new, pos, jnp.mean(diffs, axis=0)
+    if window_samples is None:
+        return new, pos, jnp.mean(diffs, axis=0)
+    ages = ((state.index - jnp.arange(window)) % window).astype(diffs.dtype)  # 0: the sample just written
+    weights = window_weights(jnp.asarray(window_samples, diffs.dtype), ages)
+    return new, pos, jnp.tensordot(weights, diffs, axes=1)
 
 
 # At a foot swap, relative coordinates (s1 = swing - stance, s2 = pelvis - stance)

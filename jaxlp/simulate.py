@@ -38,7 +38,14 @@ class SimSpec(NamedTuple):
         dt_s: control tick, s (2 ms as on COMAN).
         controller: ``"open-loop"``, ``"dlqr"`` or ``"time-projection"``.
         sensing: pass measurements through noise, filters and dead-zones.
-        window: moving-average window of the velocity estimate, samples.
+        window: moving-average window of the velocity estimate, samples (the
+            ring buffer's length; a real-valued ``Sensing.filter.window_samples``
+            up to this length overrides it).
+        freeze_on_fall: freeze a rollout where it left the valid range (the
+            default). ``False`` lets the linear model run on past that point
+            (``fell`` and ``fall_time_s`` are still those of the first
+            violation), so a failure margin measured on the trajectories is a
+            continuous function of the push across the recovered/fell boundary.
     """
 
     step_time_s: float = 0.4
@@ -47,6 +54,7 @@ class SimSpec(NamedTuple):
     controller: str = "time-projection"
     sensing: bool = False
     window: int = 30
+    freeze_on_fall: bool = True
 
     @property
     def ticks_per_step(self) -> int:
@@ -133,12 +141,12 @@ class Sensing:
 
 
 def make_sensing(noise_std_m=1e-3, bias_m=np.zeros((2, 2)), zeta=0.1,
-                 deadzone=(1e-3, 1e-3, 1e-2, 1e-2)) -> Sensing:
-    """Validated sensing constants."""
+                 deadzone=(1e-3, 1e-3, 1e-2, 1e-2), window_samples=None) -> Sensing:
+    """Validated sensing constants (see :func:`jaxlp.filters.make_filter_params`)."""
     if _is_concrete(noise_std_m) and float(noise_std_m) < 0:
         raise ValueError(f"noise_std_m must be non-negative, got {float(noise_std_m)}")
     return Sensing(jnp.asarray(noise_std_m, float), jnp.asarray(bias_m, float).reshape(2, 2),
-                   filters.make_filter_params(zeta, deadzone))
+                   filters.make_filter_params(zeta, deadzone, window_samples))
 
 
 class Plan(NamedTuple):
@@ -284,7 +292,7 @@ def simulate(
         if spec.sensing:
             tick_key = jax.random.fold_in(key, step_idx * n_ticks + k)
             obs = pos + sensing.noise_std_m * jax.random.normal(tick_key, pos.shape, pos.dtype) + sensing.bias_m
-            filt, pos, vel = filters.filter_step(filt, obs, sensing.filter.zeta, dt)
+            filt, pos, vel = filters.filter_step(filt, obs, sensing.filter.zeta, dt, sensing.filter.window_samples)
         err = jnp.concatenate([pos - nom_pos, vel - nom_vel], axis=-1) * sign[:, None]
         if spec.sensing:
             err = filters.smooth_deadzone(err, sensing.filter.deadzone)
@@ -303,7 +311,7 @@ def simulate(
         lean = jnp.abs(q_new[:, 1] - q_new[:, 2])
         bad = jnp.any(lean > limits.max_lean_ratio * params.h1) | ~jnp.all(jnp.isfinite(q_new))
         fallen = carry.fallen | bad
-        q_out = jnp.where(fallen, carry.q, q_new)
+        q_out = jnp.where(fallen, carry.q, q_new) if spec.freeze_on_fall else q_new
         fall_time = jnp.where(bad & ~carry.fallen, time + dt, carry.fall_time)
         new = carry._replace(q=q_out, ctrl=ctrl_state, filt=filt, fallen=fallen, fall_time=fall_time)
         return new, (q_out[:, 1], q_out[:, 0], q_out[:, 2], tau)
@@ -320,7 +328,7 @@ def simulate(
         nom_end = gait_mod.nominal_state(params, plan.gait, T)[0]
         adjust = (q[0, 0] - q[0, 1]) - (nom_end[0] - nom_end[1])
         swapped = jnp.stack([q[:, 2], q[:, 1], q[:, 0], jnp.zeros(2), q[:, 4], jnp.zeros(2)], axis=1)
-        q_next = jnp.where(carry.fallen, q, swapped)
+        q_next = jnp.where(carry.fallen, q, swapped) if spec.freeze_on_fall else swapped
         d_next = -carry.d
         pos, vel = _relative(q_next)
         nom_pos, nom_vel = _relative(plan.gait.q0 * axis_sign(d_next)[:, None])

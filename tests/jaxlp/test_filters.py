@@ -76,3 +76,31 @@ def test_bad_filter_params(kwargs, match):
 def test_bad_window():
     with pytest.raises(ValueError, match="window"):
         F.filter_init((2,), window=0)
+
+
+@pytest.mark.parametrize("window", [4.0, 7.0])
+def test_real_valued_window_is_the_moving_average_at_whole_numbers(window):
+    """A window of w samples in a longer ring buffer averages exactly the w newest velocity samples."""
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(20, 1))
+    plain, wide = F.filter_init((1,), window=int(window)), F.filter_init((1,), window=12)
+    for o in obs:
+        plain, _, v_plain = F.filter_step(plain, jnp.asarray(o), 0.3, 0.002)
+        wide, _, v_wide = F.filter_step(wide, jnp.asarray(o), 0.3, 0.002, window_samples=window)
+        np.testing.assert_allclose(np.asarray(v_wide), np.asarray(v_plain), rtol=1e-12, atol=1e-12)
+
+
+def test_fractional_window_interpolates_and_has_a_gradient():
+    obs = jnp.asarray(np.random.default_rng(1).normal(size=(20, 1)))
+
+    def vel(w):
+        state = F.filter_init((1,), window=12)
+        for o in obs:
+            state, _, v = F.filter_step(state, o, 0.3, 0.002, window_samples=w)
+        return v[0]
+
+    v4, v5, v45 = float(vel(4.0)), float(vel(5.0)), float(vel(4.5))
+    sum4, sum5 = 4 * v4, 5 * v5  # sums of the 4 and 5 newest samples
+    assert v45 == pytest.approx((sum4 + 0.5 * (sum5 - sum4)) / 4.5, rel=1e-12)
+    eps = 1e-6
+    assert float(jax.grad(vel)(4.3)) == pytest.approx((float(vel(4.3 + eps)) - float(vel(4.3 - eps))) / (2 * eps), rel=1e-6)
