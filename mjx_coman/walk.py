@@ -100,7 +100,7 @@ def validate(args: argparse.Namespace) -> None:
     if args.push_step < 0:
         raise ValueError(f"--push-step must be non-negative, got {args.push_step}")
     if args.push_ns > 0:
-        end = (args.push_step + args.push_phase) * STEP_TIME_S + args.push_duration
+        end = push_start_s(args.push_step, args.push_phase) + args.push_duration
         if end > args.seconds:
             raise ValueError(f"--push-step {args.push_step} at --push-phase {args.push_phase} ends at {end:g} s, "
                              f"after the walk (--seconds {args.seconds:g})")
@@ -121,6 +121,11 @@ def push_force_n(impulse_ns: float, duration_s: float, direction: str) -> tuple[
     return (f * ux, f * uy, 0.0)
 
 
+def push_start_s(push_step: int, push_phase: float, step_time_s: float = STEP_TIME_S) -> float:
+    """Start time of a push at phase ``push_phase`` of step ``push_step``: the walk's phase clock starts at 0."""
+    return (push_step + push_phase) * step_time_s
+
+
 def run(args: argparse.Namespace) -> tuple[dict, object]:
     """Build the environment, controller and push; run the walk; return the JSON summary and the result."""
     import jax
@@ -128,20 +133,19 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
 
     from mjx_coman.env import make_env_params
     from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import WalkSpec, make_push, no_push, push_start_s, walk
+    from mjx_coman.walking.rollout import WalkSpec, jit_walk, make_push, no_push
 
     env_params = make_env_params()
     ctrl_params = make_controller_params(env_params, speed_mps=args.speed)
-    spec = WalkSpec(controller=CONTROLLERS[args.controller], speed_mps=args.speed, seconds=args.seconds,
-                    step_time_s=STEP_TIME_S)
+    spec = WalkSpec(controller=CONTROLLERS[args.controller], seconds=args.seconds, step_time_s=STEP_TIME_S)
     if args.push_ns > 0:
-        start = push_start_s(spec, args.push_step, args.push_phase)
+        start = push_start_s(args.push_step, args.push_phase)
         push = make_push(start, args.push_duration, push_force_n(args.push_ns, args.push_duration, args.push_dir))
     else:
         start = None
         push = no_push()
     t0 = time.perf_counter()
-    res = jax.jit(walk, static_argnames=("spec",))(env_params, ctrl_params, push, spec, jax.random.PRNGKey(args.seed))
+    res = jit_walk(env_params, ctrl_params, push, spec, jax.random.PRNGKey(args.seed))
     res = jax.tree_util.tree_map(np.asarray, res)
     wall = time.perf_counter() - t0
     fell = bool(res.fell)

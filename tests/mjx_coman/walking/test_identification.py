@@ -110,3 +110,37 @@ def test_knee_deflection_of_standing_matches_moment_over_stiffness(stand_run, en
     # the ground reaction alone over-predicts: the shank and foot weigh 2.8 kg ahead of the knee
     no_weight = jax.vmap(idn.knee_load_moment_nm)(rec["q_rad"][late], rec["ft_l"][late], rec["ft_r"][late])
     assert np.all(np.mean(np.asarray(no_weight), axis=0) / k > 1.2 * predicted)
+
+
+def test_phase_index_from_sign_counts_the_flips():
+    d = np.array([1, 1, -1, -1, -1, 1, 1, -1])
+    assert idn.phase_index_from_sign(d).tolist() == [0, 0, 1, 1, 1, 2, 2, 3]
+
+
+def test_identify_from_a_recorded_walk_leaves_out_the_start_and_the_fall():
+    """A fake recorded walk: errors are known Gaussians, the walk is frozen after a fall at 3 s."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(4)
+    n, dt = 2000, 0.002  # 4 s, every tick
+    std = np.array([2e-3, 3e-3, 2e-2, 3e-2])
+    err = std * rng.standard_normal((n, 4))
+    err[:500] += 1.0  # the start from standing (up to 1 s; settle_s = 1.001 s)
+    t = (np.arange(n) + 1) * dt
+    fall = 3.0
+    err[t >= fall] = 5.0  # after the fall
+    t_rec = np.minimum(t, fall - dt)  # the recorded time stops at the fall
+    d = np.where((t // 0.4) % 2 == 0, 1.0, -1.0)
+    load = np.stack([(d > 0) * 0.0 + (d < 0) * 1.0, (d > 0) * 1.0], axis=1)
+    defl = 0.03 * load
+    rec = SimpleNamespace(time_s=t_rec, fall_time_s=np.float32(fall),
+                          trace=SimpleNamespace(d=d, error=err, knee_deflection_rad=defl, foot_force_n=load * 250.0))
+    fit = idn.identify_deadzones(result=rec, settle_s=1.001)
+    assert int(fit.n_samples) == 999  # 1.002 s ... 2.998 s
+    np.testing.assert_allclose(fit.thresholds, std, rtol=0.08)
+    at_change = idn.identify_deadzones(result=rec, settle_s=1.001, at_phase_change=True)
+    assert int(at_change.n_samples) == 5  # phase starts at 1.2, 1.6, 2.0, 2.4, 2.8 s
+    knee = idn.identify_knee_deflection(result=rec, settle_s=1.001, weight_n=250.0)
+    np.testing.assert_allclose(knee.mu_rad, 0.03, rtol=1e-5)
+    with pytest.raises(ValueError, match="settle_s"):
+        idn.identify_deadzones(result=rec, settle_s=-1.0)
