@@ -1,0 +1,342 @@
+"""Walking experiments of seed 000 on the simulated COMAN, each printing JSON.
+
+``python -m mjx_coman.walking.experiments {push-table,drag,scatter,speeds,identify} [options] [--json]``
+
+* ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
+  at 8 phases of one step of the in-place gait, over a grid of impulses, for
+  the closed loop (time projection) and the open loop (no footstep
+  adjustment): recovered or fell, and steps to recover (seed "Intermittent
+  Push Recovery", Figures 16-17). The claim checked: at every phase the
+  closed loop recovers an impulse at least twice the largest that the open
+  loop recovers at every phase.
+* ``drag``: a constant forward or backward force on the torso for the whole
+  walk on the open-loop in-place gait (seed Figure 18): drift speed, no fall.
+* ``scatter``: in-place walking for 10 s (25 steps) open loop, closed loop,
+  and closed loop without dead-zones; the stance foot relative to the pelvis
+  at every phase change (seed Figure 14) and its spread.
+* ``speeds``: closed-loop walking at 0.1 and 0.2 m/s (seed Figure 19): mean speed.
+* ``identify``: dead-zone thresholds and knee deflections from the open-loop
+  in-place walk (seed Figures 7 and 9; :mod:`mjx_coman.walking.identification`).
+
+The open loop is run as the time-projection controller with
+``footstep_gain = 0`` (no footstep adjustment; adaptive lift and foot
+orientation feedback on, exactly the computations of the ``"open-loop"``
+controller), and "no dead-zone" as thresholds of 1e-7 (the smooth dead-zone
+then shifts the error by at most 1e-7), so that every variant of a table is
+one batch of one compiled walk (``batched_walk`` over controller parameters,
+pushes and keys). Each function returns a dict of plain numbers (and
+per-rollout arrays under ``"rollouts"``, left out of the JSON unless ``--rollouts``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+import sys
+import time
+
+import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+STEP_TIME_S = 0.4
+NO_DEADZONE = 1e-7  # dead-zone threshold that leaves the error untouched (to 1e-7)
+PUSH_DURATION_S = 0.1
+
+
+@functools.lru_cache(maxsize=None)
+def _walker(spec):
+    from mjx_coman.walking.rollout import batched_walk
+
+    return batched_walk(spec, ctrl_axes=0)
+
+
+def _stack(items):
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *items)
+
+
+def variant(base, name: str):
+    """Controller parameters of a named variant: ``closed-loop``, ``open-loop`` or ``no-deadzone``."""
+    if name == "closed-loop":
+        return base
+    if name == "open-loop":
+        return base.replace(footstep_gain=jnp.zeros_like(base.footstep_gain))
+    if name == "no-deadzone":
+        return base.replace(deadzone=jnp.full_like(base.deadzone, NO_DEADZONE))
+    raise ValueError(f"unknown variant {name!r}")
+
+
+def run_batch(env_params, ctrl_list, pushes, spec, seed: int = 0, chunk: int = 64):
+    """Walk every (controller params, push) pair of the lists, in chunks of one compiled vmap.
+
+    Returns:
+        The :class:`~mjx_coman.walking.rollout.WalkResult` with a leading batch
+        axis, as NumPy arrays.
+    """
+    n = len(ctrl_list)
+    if n != len(pushes) or n == 0:
+        raise ValueError(f"need as many pushes as controller params (> 0), got {len(pushes)} and {n}")
+    size = min(chunk, n)
+    fn = _walker(spec)
+    keys = jax.random.split(jax.random.PRNGKey(seed), n)
+    outs = []
+    for i in range(0, n, size):
+        idx = list(range(i, min(i + size, n)))
+        idx += [idx[-1]] * (size - len(idx))  # pad the last chunk: one compiled batch size
+        res = fn(env_params, _stack([ctrl_list[j] for j in idx]), _stack([pushes[j] for j in idx]), keys[np.array(idx)])
+        outs.append(jax.tree_util.tree_map(np.asarray, res))
+    res = jax.tree_util.tree_map(lambda *xs: np.concatenate(xs)[:n], *outs)
+    return res
+
+
+def _setup(speed_mps: float = 0.0, **kw):
+    from mjx_coman.env import make_env_params
+    from mjx_coman.walking.controller import make_controller_params
+
+    env = make_env_params()
+    return env, make_controller_params(env, speed_mps, **kw)
+
+
+def largest_recovered(impulses, recovered) -> np.ndarray:
+    """Largest impulse below which every impulse of the grid was recovered (0 if the smallest fell).
+
+    Args:
+        impulses: (m,) increasing grid.
+        recovered: (..., m) bool.
+    """
+    rec = np.asarray(recovered, bool)
+    ok = np.cumprod(rec, axis=-1).astype(bool)
+    grid = np.concatenate([[0.0], np.asarray(impulses, float)])
+    return grid[ok.sum(axis=-1)]
+
+
+def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: int = 8, push_step: int = 4,
+               steps_after: int = 8, directions=("forward", "backward"), controllers=("closed-loop", "open-loop"),
+               seed: int = 0, chunk: int = 64) -> dict:
+    """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place)."""
+    from mjx_coman.walking.rollout import WalkSpec, make_push
+
+    imp = np.asarray(sorted(impulses), float)
+    if imp.size == 0 or np.any(imp <= 0):
+        raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
+    env, base = _setup(0.0)
+    phases = np.arange(n_phases) / n_phases
+    seconds = (push_step + 1 + steps_after) * STEP_TIME_S
+    spec = WalkSpec(controller="time-projection", seconds=seconds)
+    sign = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
+    ctrl, pushes, index = [], [], []
+    for c in controllers:
+        cp = variant(base, c)
+        for dname in directions:
+            for ph in phases:
+                for m in imp:
+                    ctrl.append(cp)
+                    pushes.append(make_push((push_step + ph) * STEP_TIME_S, PUSH_DURATION_S,
+                                            impulse_ns=m, direction_rad=sign[dname]))
+                    index.append((c, dname, ph, m))
+    t0 = time.perf_counter()
+    res = run_batch(env, ctrl, pushes, spec, seed, chunk)
+    wall = time.perf_counter() - t0
+    shape = (len(controllers), len(directions), n_phases, imp.size)
+    fell = res.fell.reshape(shape)
+    s2r = res.steps_to_recover.reshape(shape)
+    out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,
+           "push_duration_s": PUSH_DURATION_S, "seconds": seconds, "rollouts": len(ctrl),
+           "wall_s": round(wall, 1), "tables": {}}
+    every = {}
+    for i, c in enumerate(controllers):
+        for j, dname in enumerate(directions):
+            largest = largest_recovered(imp, ~fell[i, j])
+            every[(c, dname)] = float(largest.min())
+            out["tables"][f"{c}/{dname}"] = {
+                "recovered": (~fell[i, j]).astype(int).tolist(),  # [phase][impulse]
+                "steps_to_recover": s2r[i, j].tolist(),
+                "largest_recovered_ns_per_phase": largest.tolist(),
+                "recovered_at_every_phase_ns": every[(c, dname)],
+            }
+    if "closed-loop" in controllers and "open-loop" in controllers:
+        out["claim"] = {}
+        for dname in directions:
+            cl, ol = every[("closed-loop", dname)], every[("open-loop", dname)]
+            out["claim"][dname] = {"closed_loop_ns": cl, "open_loop_ns": ol,
+                                   "ratio": (cl / ol) if ol > 0 else None, "holds": bool(cl >= 2 * ol and cl > 0)}
+    out["raw"] = res
+    return out
+
+
+def _relative_footsteps(res, skip_steps: int = 2) -> dict:
+    """Stance foot minus pelvis at each phase start, split by foot; per rollout lists."""
+    rel = res.footsteps_m - res.pelvis_at_step_m  # (b, n_steps, 3)
+    out = []
+    for b in range(rel.shape[0]):
+        k = int(res.steps[b])
+        r = rel[b, skip_steps:k + 1, :2]
+        out.append({"right": r[(np.arange(skip_steps, k + 1) % 2) == 0].tolist(),
+                    "left": r[(np.arange(skip_steps, k + 1) % 2) == 1].tolist()})
+    return out
+
+
+def footstep_spread_m(rel: dict) -> dict:
+    """Standard deviation (sagittal, lateral) of each foot's position relative to the pelvis, and their mean."""
+    out = {}
+    for foot in ("left", "right"):
+        a = np.asarray(rel[foot])
+        out[foot] = np.std(a, axis=0, ddof=1).tolist() if len(a) > 1 else [float("nan")] * 2
+    out["mean_sagittal_m"] = float(np.mean([out["left"][0], out["right"][0]]))
+    out["mean_lateral_m"] = float(np.mean([out["left"][1], out["right"][1]]))
+    return out
+
+
+def ten_second_walks(seconds: float = 10.0, drag_forces_n=(5.0, -5.0), speeds=(0.1, 0.2), seed: int = 0) -> dict:
+    """The 10-second experiments in one batch of one compiled walk: scatter (Figure 14), drag (18), speeds (19)."""
+    from mjx_coman.walking.controller import make_controller_params
+    from mjx_coman.walking.rollout import WalkSpec, make_push, no_push
+
+    env, base = _setup(0.0)
+    spec = WalkSpec(controller="time-projection", seconds=seconds)
+    names, ctrl, pushes = [], [], []
+    for v in ("open-loop", "closed-loop", "no-deadzone"):
+        names.append(("scatter", v))
+        ctrl.append(variant(base, v))
+        pushes.append(no_push())
+    for f in drag_forces_n:
+        names.append(("drag", f))
+        ctrl.append(variant(base, "open-loop"))
+        pushes.append(make_push(0.0, seconds + 1.0, (f, 0.0, 0.0)))
+    for v in speeds:
+        names.append(("speed", v))
+        ctrl.append(make_controller_params(env, v))
+        pushes.append(no_push())
+    t0 = time.perf_counter()
+    res = run_batch(env, ctrl, pushes, spec, seed)
+    wall = time.perf_counter() - t0
+    rel = _relative_footsteps(res)
+    out = {"seconds": seconds, "rollouts": len(ctrl), "wall_s": round(wall, 1), "scatter": {}, "drag": {},
+           "speeds": {}}
+    for b, (kind, val) in enumerate(names):
+        common = {"fell": bool(res.fell[b]), "steps": int(res.steps[b]), "mean_speed_mps": float(res.mean_speed_mps[b]),
+                  "max_abs_footstep_adjustment_m": float(res.max_abs_footstep_adjustment_m[b])}
+        if kind == "scatter":
+            out["scatter"][val] = {**common, "spread": footstep_spread_m(rel[b]), "footsteps_rel_pelvis_m": rel[b]}
+        elif kind == "drag":
+            p = res.pelvis_m[b]
+            k = int(res.steps[b])
+            x = res.pelvis_at_step_m[b, :k + 1, 0]
+            out["drag"][f"{val:+g}N"] = {**common, "force_n": val,
+                                          "overall_speed_mps": float((x[-1] - x[0]) / max(k * STEP_TIME_S, 1e-9)),
+                                          "peak_step_speed_mps": float(np.max(np.abs(np.diff(x))) / STEP_TIME_S)
+                                          if k > 0 else 0.0,
+                                          "final_pelvis_m": p[-1].tolist()}
+        else:
+            out["speeds"][f"{val:g}"] = {**common, "commanded_mps": val,
+                                         "within_25_percent": bool(abs(res.mean_speed_mps[b] - val) <= 0.25 * val)}
+    sc = out["scatter"]
+    if all(k in sc for k in ("closed-loop", "no-deadzone")):
+        out["deadzone_no_larger_scatter"] = bool(
+            sc["closed-loop"]["spread"]["mean_sagittal_m"] <= sc["no-deadzone"]["spread"]["mean_sagittal_m"])
+    out["raw"] = res
+    return out
+
+
+def identify(seconds: float = 10.0, settle_s: float = 2.0, seed: int = 0) -> dict:
+    """Dead-zone thresholds (Figure 9) and knee deflections (Figure 7) from the open-loop in-place walk."""
+    from mjx_coman.walking import identification as idn
+
+    env, base = _setup(0.0)
+    t0 = time.perf_counter()
+    r = jax.tree_util.tree_map(np.asarray, idn.open_loop_walk(env, base, seconds=seconds, seed=seed))
+    wall = time.perf_counter() - t0
+    dz = idn.identify_deadzones(result=r, settle_s=settle_s)
+    dz_pc = idn.identify_deadzones(result=r, settle_s=settle_s, at_phase_change=True)
+    kn = idn.identify_knee_deflection(env, result=r, settle_s=settle_s)
+    k = float(np.asarray(env.actuator.spring_stiffness_nm_per_rad)[idn.LEFT_KNEE])
+    return {
+        "seconds": seconds, "settle_s": settle_s, "fell": bool(r.fell), "steps": int(r.steps), "wall_s": round(wall, 1),
+        "deadzone_names": list(idn.ERROR_NAMES),
+        "deadzone_thresholds": np.asarray(dz.thresholds).tolist(), "error_mean": np.asarray(dz.mean).tolist(),
+        "deadzone_thresholds_at_phase_change": np.asarray(dz_pc.thresholds).tolist(),
+        "samples": int(dz.n_samples),
+        "mu_left_rad": float(kn.mu_left_rad), "mu_right_rad": float(kn.mu_right_rad),
+        "mu_full_support_mean_rad": np.asarray(kn.full_support_mean_rad).tolist(),
+        "knee_fit_residual_std_rad": np.asarray(kn.residual_std_rad).tolist(),
+        "knee_spring_nm_per_rad": k,
+    }
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sys.exit(2)
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not vals or not all(math.isfinite(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"expected finite numbers, got {text!r}")
+    return vals
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items() if k != "raw"}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return None if not math.isfinite(float(x)) else float(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def main(argv=None) -> int:
+    ap = _Parser(prog="python -m mjx_coman.walking.experiments", description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="experiment", required=True, parser_class=_Parser)
+    pt = sub.add_parser("push-table")
+    pt.add_argument("--impulses", type=_floats, default=[1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0], help="N s")
+    pt.add_argument("--phases", type=int, default=8)
+    pt.add_argument("--push-step", type=int, default=4)
+    pt.add_argument("--steps-after", type=int, default=8)
+    for name in ("drag", "scatter", "speeds", "ten"):
+        sp = sub.add_parser(name)
+        sp.add_argument("--seconds", type=float, default=10.0)
+        sp.add_argument("--drag-forces", type=_floats, default=[5.0, -5.0], help="N (x; + forward)")
+        sp.add_argument("--speeds", type=_floats, default=[0.1, 0.2], help="m/s")
+    idp = sub.add_parser("identify")
+    idp.add_argument("--seconds", type=float, default=10.0)
+    idp.add_argument("--settle", type=float, default=2.0)
+    for sp in sub.choices.values():
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    if args.experiment == "push-table":
+        if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
+            sys.stderr.write("python -m mjx_coman.walking.experiments: error: --phases, --steps-after >= 1, "
+                             "--push-step >= 0 and --impulses > 0 required\n")
+            return 2
+        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed)
+    elif args.experiment == "identify":
+        res = identify(args.seconds, args.settle, args.seed)
+    else:
+        if not 0 < args.seconds <= 600:
+            sys.stderr.write(f"python -m mjx_coman.walking.experiments: error: --seconds must lie in (0, 600], "
+                             f"got {args.seconds}\n")
+            return 2
+        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed)
+        keep = {"drag": "drag", "scatter": "scatter", "speeds": "speeds"}.get(args.experiment)
+        if keep:
+            res = {k: v for k, v in res.items() if k in (keep, "seconds", "wall_s", "rollouts", "raw",
+                                                         "deadzone_no_larger_scatter")}
+    print(json.dumps(_jsonable(res), indent=2 if args.json else None))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
