@@ -48,7 +48,7 @@ import numpy as np
 from jaxlp.gait import Gait, nominal_state
 from jaxlp.params import ThreeLPParams
 from mjx_coman.actuators import JOINT_INDEX
-from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, HIP_HALF_WIDTH_M, leg_fk, leg_ik, rot_x
+from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, HIP_HALF_WIDTH_M, leg_fk, leg_ik, rot_x, rot_y
 
 LEG_JOINTS = ("HipSag", "HipLat", "HipYaw", "KneeSag", "AnkLat", "AnkSag")  # kinematics leg order
 LEFT_LEG_INDEX = np.array([JOINT_INDEX["L" + n] for n in LEG_JOINTS])
@@ -126,9 +126,24 @@ def cartesian_targets(
     T = gait.step_time_s if step_time_s is None else step_time_s
     d = jnp.asarray(d, dtype=gait.q0.dtype)
     q = nominal_state(params3lp, gait, t_s, d)  # (2, 6): [s, p, a, ...] per axis
+    return targets_from_state(q, gait.step_width_m, t_s, d, pelvis_height_m, lift_m, roll_amp_rad, T,
+                              lateral_bounce)
+
+
+def targets_from_state(q, step_width_m, t_s, d, pelvis_height_m, lift_m=FIXED_LIFT_M, roll_amp_rad=ROLL_AMP_RAD,
+                       step_time_s=0.4, lateral_bounce: bool = False) -> CartesianTargets:
+    """:func:`cartesian_targets` from a given 3LP state ``q`` (2, 6) instead of the gait.
+
+    Lets a caller that has the nominal state already (a per-tick table) skip
+    the matrix exponential of :func:`jaxlp.gait.nominal_state`; same frames
+    and equations (seed 000, eq. 22-23).
+    """
+    T = step_time_s
+    q = jnp.asarray(q)
+    d = jnp.asarray(d, dtype=q.dtype)
     swing_xy, pelvis_xy, stance_xy = q[:, 0], q[:, 1], q[:, 2]
     if not lateral_bounce:
-        pelvis_xy = pelvis_xy.at[1].set(stance_xy[1] + 0.5 * d * gait.step_width_m)
+        pelvis_xy = pelvis_xy.at[1].set(stance_xy[1] + 0.5 * d * step_width_m)
     sine = _half_sine(t_s, T)
     roll = d * roll_amp_rad * sine
     lift = lift_m * sine
@@ -144,7 +159,7 @@ def cartesian_targets(
     return CartesianTargets(swing - pelvis, stance - pelvis, pelvis - stance, roll, lift)
 
 
-def joint_targets(targets: CartesianTargets, d, posture_q_rad) -> jax.Array:
+def joint_targets(targets: CartesianTargets, d, posture_q_rad, swing_pitch_rad=0.0) -> jax.Array:
     """Desired joint angles by inverse kinematics of both legs (block "B" of Figure 3).
 
     The targets are rotated from the heading frame into the pelvis frame by the
@@ -157,6 +172,8 @@ def joint_targets(targets: CartesianTargets, d, posture_q_rad) -> jax.Array:
         d: phase sign, +1 left swing, -1 right swing.
         posture_q_rad: (23,) posture for the joints not set here (waist, arms),
             in ``actuators.JOINT_NAMES`` order, e.g. ``env.standing_posture()[0]``.
+        swing_pitch_rad: pitch of the swing foot about +y in the heading frame
+            (toes down > 0; seed 000, eq. 30 feedback), rad; 0 keeps it flat.
 
     Returns:
         (23,) desired joint angles, rad, ``actuators.JOINT_NAMES`` order.
@@ -166,8 +183,9 @@ def joint_targets(targets: CartesianTargets, d, posture_q_rad) -> jax.Array:
     left_m = jnp.where(left_swing, targets.swing_m, targets.stance_m)
     right_m = jnp.where(left_swing, targets.stance_m, targets.swing_m)
     r_t = rot_x(jnp.asarray(targets.roll_rad, q.dtype)).T
-    left = leg_ik(r_t @ left_m, r_t, 1.0, FOOT_POINT_OFFSET_M)
-    right = leg_ik(r_t @ right_m, r_t, -1.0, FOOT_POINT_OFFSET_M)
+    r_swing = r_t @ rot_y(jnp.asarray(swing_pitch_rad, q.dtype))
+    left = leg_ik(r_t @ left_m, jnp.where(left_swing, r_swing, r_t), 1.0, FOOT_POINT_OFFSET_M)
+    right = leg_ik(r_t @ right_m, jnp.where(left_swing, r_t, r_swing), -1.0, FOOT_POINT_OFFSET_M)
     return q.at[LEFT_LEG_INDEX].set(left.astype(q.dtype)).at[RIGHT_LEG_INDEX].set(right.astype(q.dtype))
 
 
