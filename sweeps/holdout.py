@@ -31,12 +31,13 @@ from jaxlp.presets import get_params
 from jaxlp.simulate import Push, SimSpec, simulate
 from sweeps import report
 from sweeps.grid import SweepConfig, grid_inputs
-from sweeps.objective import Constants, _sensing
+from sweeps.objective import Constants, _error_norms, _sensing
 
 
 # Noisy walks never settle to the noise-free 0.02 of jaxlp.simulate: undisturbed walks with the seed's
 # constants and 1 mm noise show landing errors of 0.1-0.3 (mostly velocities), so "recovered" is looser here.
 RECOVER_TOL = 0.1
+LATE_STEPS = 3  # the residual wobble: mean landing error over the last 3 landings
 
 
 class HoldoutRun(NamedTuple):
@@ -69,7 +70,8 @@ def _rollout(config: SweepConfig, c: Constants, lateral_deadzone, bias_std_m: fl
     finite = jnp.all(jnp.isfinite(r.pelvis_m)) & jnp.all(jnp.isfinite(r.step_error))
     return dict(fell=r.fell | ~finite, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
                 max_abs_footstep_adjustment_m=jnp.max(jnp.abs(r.footstep_adjustment_m)),
-                fall_time_s=r.fall_time_s, nan=~finite)
+                fall_time_s=r.fall_time_s, nan=~finite,
+                late_error=jnp.mean(_error_norms(params, r.step_error)[-LATE_STEPS:]))
 
 
 def run_holdout(config: SweepConfig, constants: Constants, lateral_deadzone, bias_std_m: float = 2e-3,
@@ -121,6 +123,7 @@ def summary(run: HoldoutRun) -> dict:
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
+        late_error_median=float(np.median(res["late_error"][ok])) if ok.any() else None,
         per_phase=[dict(phase=r["phase"], max_recovered_impulse_ns=r["max_recovered_impulse_ns"],
                         recovery_rate=r["recovery_rate"]) for r in report.per_phase(cfg, res)],
         wall_s=run.timing["wall_s"],
@@ -145,8 +148,11 @@ def compare(runs: dict[str, list[HoldoutRun]]) -> dict:
         steps = np.concatenate([r.results["steps_to_recover"][report.recovered(r.results)
                                                               & (r.results["impulse_ns"] > 0)] for r in lst])
         settled = steps[steps >= 0]
+        late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst])
         out[name] = dict(recovery_rate=float(np.mean(ok)), rollouts=int(ok.size),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
+                         settled_within_tol=int(settled.size), recover_tol=RECOVER_TOL,
+                         late_error_median=float(np.median(late)) if late.size else None,
                          per_direction=per)
     return out
 

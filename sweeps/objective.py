@@ -297,6 +297,7 @@ class RolloutCost(NamedTuple):
         fall: smooth fall indicator ``sigmoid(-margin / fall_scale)`` in (0, 1).
         error: mean ``log1p((|E_k| / error_scale)^2)`` over the landings from the push step on.
         margin: the soft failure margin, ``h1``.
+        hard_margin: the failure margin without smoothing (negative exactly when it fell), ``h1``.
         fell: the rollout left the valid range (hard outcome).
     """
 
@@ -304,6 +305,7 @@ class RolloutCost(NamedTuple):
     fall: jax.Array
     error: jax.Array
     margin: jax.Array
+    hard_margin: jax.Array
     fell: jax.Array
 
 
@@ -315,7 +317,8 @@ def rollout_cost(params: ThreeLPParams, c: Constants, lateral_deadzone, scenario
     fall = jax.nn.sigmoid(-margin / spec.fall_scale)
     norms = _error_norms(params, r.step_error)[spec.push_step:]
     error = jnp.mean(jnp.log1p((norms / spec.error_scale) ** 2))
-    return RolloutCost(fall + spec.error_weight * error, fall, error, margin, r.fell)
+    hard = failure_margin(params, r, spec)
+    return RolloutCost(fall + spec.error_weight * error, fall, error, margin, hard, r.fell)
 
 
 def objective(raw: RawConstants, params: ThreeLPParams, lateral_deadzone, scenarios: Scenarios,

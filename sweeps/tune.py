@@ -331,8 +331,9 @@ def run(args, parser) -> int:
         table = run_holdout_validation(record, args.out)["table"]
         for name, t in table.items():
             steps = "-" if t["mean_steps_to_recover"] is None else f"{t['mean_steps_to_recover']:.2f}"
-            print(f"  held-out grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} recovered, "
-                  f"mean steps to recover {steps}")
+            print(f"  held-out grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} recovered; "
+                  f"{t['settled_within_tol']} pushed walks settled under {t['recover_tol']:g}, after {steps} steps "
+                  f"on average; median late landing error {t['late_error_median']:.3f}")
         print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.png")
     else:
         print(f"wrote {args.out}/tuned.json, loss.png")
