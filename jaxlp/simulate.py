@@ -243,6 +243,7 @@ def simulate(
     limits: Limits | None = None,
     key: jax.Array | None = None,
     recover_tol: float = 0.02,
+    plan: Plan | None = None,
 ) -> Result:
     """Simulate closed-loop 3LP walking for ``spec.n_steps`` phases.
 
@@ -257,6 +258,9 @@ def simulate(
         limits: saturation and validity limits (:func:`make_limits` defaults).
         key: PRNG key for the measurement noise (needed when sensing).
         recover_tol: dimensionless error size under which a step counts as recovered.
+        plan: ``make_plan(params, spec, speed_mps, step_width_m, weights)`` computed beforehand
+            (``None``: computed here). Sweeps pass it so that the batched linear algebra of the
+            plan stays out of their sharded rollouts.
 
     Returns:
         A :class:`Result`.
@@ -266,7 +270,8 @@ def simulate(
     if spec.sensing:
         sensing = make_sensing() if sensing is None else sensing
         key = jax.random.PRNGKey(0) if key is None else key
-    plan = make_plan(params, spec, speed_mps, step_width_m, weights)
+    if plan is None:
+        plan = make_plan(params, spec, speed_mps, step_width_m, weights)
     controller = get_controller(spec.controller)
     n_ticks, dt = spec.ticks_per_step, spec.dt_s
     T = spec.step_time_s
