@@ -182,12 +182,14 @@ def plot(res, path: str, title: str) -> None:
 
     pel = np.asarray(res.pelvis_m)
     t = np.asarray(res.time_s)
-    steps = np.asarray(res.footsteps_m)
-    steps = steps[np.all(np.isfinite(steps), axis=1)]
+    steps = np.asarray(res.footsteps_m)[: int(res.steps) + 1]  # stance foot of phase k: right if k even
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     a.plot(pel[:, 0], pel[:, 1], "-", color="0.3", lw=1, label="pelvis")
-    a.scatter(steps[:, 0], steps[:, 1], c=np.arange(len(steps)), cmap="viridis", marker="s", s=30,
-              label="footsteps (at phase changes)")
+    for side, k0, color in (("right", 0, "tab:red"), ("left", 1, "tab:blue")):
+        a.plot(steps[k0::2, 0], steps[k0::2, 1], "s", color=color, ms=5, label=f"{side} footsteps")
+    for k, (x, y) in enumerate(steps[:, :2]):
+        if np.isfinite(x):
+            a.annotate(str(k), (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
     a.set_xlabel("x (m)")
     a.set_ylabel("y (m)")
     a.set_aspect("equal", adjustable="datalim")

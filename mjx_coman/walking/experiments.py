@@ -1,6 +1,6 @@
 """Walking experiments of seed 000 on the simulated COMAN, each printing JSON.
 
-``python -m mjx_coman.walking.experiments {push-table,drag,scatter,speeds,identify} [options] [--json]``
+``python -m mjx_coman.walking.experiments {push-table,drag,scatter,speeds,ten,identify} [options] [--json]``
 
 * ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
   at 8 phases of one step of the in-place gait, over a grid of impulses, for
@@ -15,6 +15,7 @@
   and closed loop without dead-zones; the stance foot relative to the pelvis
   at every phase change (seed Figure 14) and its spread.
 * ``speeds``: closed-loop walking at 0.1 and 0.2 m/s (seed Figure 19): mean speed.
+* ``ten``: ``scatter``, ``drag`` and ``speeds`` in one batch (one compilation).
 * ``identify``: dead-zone thresholds and knee deflections from the open-loop
   in-place walk (seed Figures 7 and 9; :mod:`mjx_coman.walking.identification`).
 
@@ -190,23 +191,27 @@ def footstep_spread_m(rel: dict) -> dict:
     return out
 
 
-def ten_second_walks(seconds: float = 10.0, drag_forces_n=(5.0, -5.0), speeds=(0.1, 0.2), seed: int = 0) -> dict:
-    """The 10-second experiments in one batch of one compiled walk: scatter (Figure 14), drag (18), speeds (19)."""
+def ten_second_walks(seconds: float = 10.0, drag_forces_n=(5.0, -5.0), speeds=(0.1, 0.2), seed: int = 0,
+                     which=("scatter", "drag", "speeds")) -> dict:
+    """The 10-second experiments in one batch of one compiled walk: scatter (Figure 14), drag (18), speeds (19).
+
+    ``which`` picks the experiments of the batch.
+    """
     from mjx_coman.walking.controller import make_controller_params
     from mjx_coman.walking.rollout import WalkSpec, make_push, no_push
 
     env, base = _setup(0.0)
     spec = WalkSpec(controller="time-projection", seconds=seconds)
     names, ctrl, pushes = [], [], []
-    for v in ("open-loop", "closed-loop", "no-deadzone"):
+    for v in ("open-loop", "closed-loop", "no-deadzone") if "scatter" in which else ():
         names.append(("scatter", v))
         ctrl.append(variant(base, v))
         pushes.append(no_push())
-    for f in drag_forces_n:
+    for f in drag_forces_n if "drag" in which else ():
         names.append(("drag", f))
         ctrl.append(variant(base, "open-loop"))
         pushes.append(make_push(0.0, seconds + 1.0, (f, 0.0, 0.0)))
-    for v in speeds:
+    for v in speeds if "speeds" in which else ():
         names.append(("speed", v))
         ctrl.append(make_controller_params(env, v))
         pushes.append(no_push())
@@ -304,7 +309,7 @@ def main(argv=None) -> int:
     pt.add_argument("--phases", type=int, default=8)
     pt.add_argument("--push-step", type=int, default=4)
     pt.add_argument("--steps-after", type=int, default=8)
-    for name in ("drag", "scatter", "speeds", "ten"):
+    for name in ("drag", "scatter", "speeds", "ten"):  # "ten": all three in one batch
         sp = sub.add_parser(name)
         sp.add_argument("--seconds", type=float, default=10.0)
         sp.add_argument("--drag-forces", type=_floats, default=[5.0, -5.0], help="N (x; + forward)")
@@ -329,11 +334,8 @@ def main(argv=None) -> int:
             sys.stderr.write(f"python -m mjx_coman.walking.experiments: error: --seconds must lie in (0, 600], "
                              f"got {args.seconds}\n")
             return 2
-        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed)
-        keep = {"drag": "drag", "scatter": "scatter", "speeds": "speeds"}.get(args.experiment)
-        if keep:
-            res = {k: v for k, v in res.items() if k in (keep, "seconds", "wall_s", "rollouts", "raw",
-                                                         "deadzone_no_larger_scatter")}
+        which = ("scatter", "drag", "speeds") if args.experiment == "ten" else (args.experiment,)
+        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed, which)
     print(json.dumps(_jsonable(res), indent=2 if args.json else None))
     return 0
 
