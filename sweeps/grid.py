@@ -18,7 +18,11 @@ from typing import NamedTuple
 import numpy as np
 
 DIRECTIONS_RAD = {"forward": 0.0, "left": math.pi / 2, "backward": math.pi, "right": -math.pi / 2}
-CONTROLLERS = ("time-projection", "dlqr", "open-loop")
+MODEL_CONTROLLERS = {
+    "3lp": ("time-projection", "dlqr", "open-loop"),
+    "mjx": ("time-projection", "dlqr", "open-loop", "no-deadzone"),
+}
+CONTROLLERS = ("time-projection", "dlqr", "open-loop", "no-deadzone")
 
 
 class GridError(ValueError):
@@ -39,6 +43,8 @@ def parse_phases(text: str) -> tuple[float, ...]:
                 raise GridError(f"--phases must be a count >= 1 or a list in [0, 1), got {text!r}")
             return tuple(float(k) / n for k in range(n))
         vals = tuple(float(v) for v in text.split(",") if v.strip())
+    except GridError:
+        raise
     except ValueError:
         raise GridError(f"--phases must be a count or comma-separated numbers, got {text!r}") from None
     if not vals:
@@ -66,6 +72,8 @@ def parse_impulses(text: str) -> tuple[float, ...]:
             vals = tuple(float(v) for v in np.linspace(start, stop, num))
         else:
             vals = tuple(float(v) for v in text.split(",") if v.strip())
+    except GridError:
+        raise
     except ValueError:
         raise GridError(f"--impulses must be start:stop:num or comma-separated numbers (N s), got {text!r}") from None
     if not vals:
@@ -93,10 +101,17 @@ class SweepConfig:
         speed_mps: commanded walking speed (0: in place).
         step_time_s: phase duration, s.
         n_steps: phases simulated per rollout.
-        noise_std_m: sensor noise std on relative positions, m (sensing on if > 0 or bias).
-        bias_m: constant sagittal pelvis position bias, m.
-        randomize_mass_pct: per-rollout uniform +-% on ``m1`` and ``m2`` (0: off).
-        randomize_leg_pct: per-rollout uniform +-% on the leg length ``h1`` (``h2``, ``I2`` follow).
+        noise_std_m: 3LP: sensor noise std on relative positions, m (sensing on if > 0 or bias).
+        bias_m: 3LP: constant sagittal pelvis position bias, m.
+        sensor_noise_scale: MJX: IMU, gyro and F/T noise as a multiple of COMAN's nominal
+            levels (:func:`mjx_coman.sensors.make_sensor_params`); 0: noise-free (12-bit encoders stay).
+        encoder_offset_std_rad: MJX: std of constant per-joint link encoder offsets, drawn per rollout, rad.
+        randomize_mass_pct: per-rollout uniform +-% on the body masses (3LP: ``m1``, ``m2``; MJX: every
+            body, inertia alike) (0: off).
+        randomize_leg_pct: 3LP: per-rollout uniform +-% on the leg length ``h1`` (``h2``, ``I2`` follow).
+        randomize_spring_pct: MJX: per-rollout uniform +-% on the SEA spring stiffness (one factor per joint).
+        randomize_delay_ticks: MJX: per-rollout uniform integer offset in [-k, k] control ticks on the
+            transport delay (nominal 10 ticks = 20 ms).
         seed: PRNG seed.
         chunk: rollouts per chunk (one jitted call; also the resume unit).
         x64: simulate in 64-bit floats.
@@ -117,14 +132,22 @@ class SweepConfig:
     bias_m: float = 0.0
     randomize_mass_pct: float = 0.0
     randomize_leg_pct: float = 0.0
+    sensor_noise_scale: float = 0.0
+    encoder_offset_std_rad: float = 0.0
+    randomize_spring_pct: float = 0.0
+    randomize_delay_ticks: int = 0
     seed: int = 0
     chunk: int = 256
     x64: bool = False
 
     def validate(self) -> "SweepConfig":
         """Raise :class:`GridError` naming the first bad value; return ``self``."""
-        if self.controller not in CONTROLLERS:
-            raise GridError(f"unknown controller {self.controller!r}; choose one of {', '.join(CONTROLLERS)}")
+        if self.model not in MODEL_CONTROLLERS:
+            raise GridError(f"unknown model {self.model!r}; choose one of {', '.join(MODEL_CONTROLLERS)}")
+        ctrls = MODEL_CONTROLLERS[self.model]
+        if self.controller not in ctrls:
+            raise GridError(f"unknown controller {self.controller!r} for model {self.model}; "
+                            f"choose one of {', '.join(ctrls)}")
         if self.direction not in DIRECTIONS_RAD:
             raise GridError(f"unknown direction {self.direction!r}; choose one of {', '.join(DIRECTIONS_RAD)}")
         if not self.phases or not self.impulses_ns:
@@ -136,13 +159,25 @@ class SweepConfig:
         for name in ("push_duration_s", "step_time_s"):
             if not getattr(self, name) > 0:
                 raise GridError(f"{name} must be positive, got {getattr(self, name)}")
-        for name in ("noise_std_m", "randomize_mass_pct", "randomize_leg_pct"):
-            if not getattr(self, name) >= 0:
-                raise GridError(f"{name} must be non-negative, got {getattr(self, name)}")
-        if max(self.randomize_mass_pct, self.randomize_leg_pct) >= 50:
-            raise GridError("randomisation must stay below 50 %")
+        for name in ("noise_std_m", "sensor_noise_scale", "encoder_offset_std_rad", "randomize_mass_pct",
+                     "randomize_leg_pct", "randomize_spring_pct", "randomize_delay_ticks"):
+            if not getattr(self, name) >= 0 or not math.isfinite(getattr(self, name)):
+                raise GridError(f"{name} must be finite and non-negative, got {getattr(self, name)}")
+        for name in ("randomize_mass_pct", "randomize_leg_pct", "randomize_spring_pct"):
+            if getattr(self, name) >= 50:
+                raise GridError(f"{name} must stay below 50 %, got {getattr(self, name)}")
+        only = {"3lp": ("noise_std_m", "bias_m", "randomize_leg_pct"),
+                "mjx": ("sensor_noise_scale", "encoder_offset_std_rad", "randomize_spring_pct",
+                        "randomize_delay_ticks")}
+        for model, names in only.items():
+            for name in names:
+                if self.model != model and getattr(self, name) != 0:
+                    raise GridError(f"{name} applies to --model {model} only, got {getattr(self, name)} "
+                                    f"with --model {self.model}")
         if self.push_step < 0 or self.push_step >= self.n_steps:
             raise GridError(f"push_step must lie in [0, n_steps={self.n_steps}), got {self.push_step}")
+        if not 0 <= self.seed < 2**32:
+            raise GridError(f"seed must lie in [0, 2**32), got {self.seed}")
         if self.chunk < 1:
             raise GridError(f"chunk must be >= 1, got {self.chunk}")
         return self
@@ -154,6 +189,13 @@ class SweepConfig:
     @property
     def n_rollouts(self) -> int:
         return len(self.phases) * len(self.impulses_ns)
+
+    def compiled_part(self) -> "SweepConfig":
+        """The configuration without what reaches the rollouts as inputs (seed, grid, chunk).
+
+        Models see only this, so sweeps that differ in seed or grid share compiled code.
+        """
+        return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1)
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)

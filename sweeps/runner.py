@@ -1,21 +1,30 @@
-"""Run a sweep: jit + vmap over fixed-size chunks, sharded over devices, resumable.
+"""Run a sweep: jit + vmap over fixed-size chunks, sharded over every device, resumable.
 
 Each chunk of ``config.chunk`` rollouts (the last one padded, so every call
-has the same shapes and compiles once) is padded to a multiple of the local
-device count, placed with ``NamedSharding(Mesh(devices, ("batch",)),
-PartitionSpec("batch"))`` and run by one jitted ``vmap`` of the model's
-rollout. Each finished chunk is written atomically (temporary file in the same
-folder, then ``os.replace``) under ``OUT/chunks/``; ``resume=True`` skips the
-chunks already there. ``OUT/config.json`` holds the configuration and its
-hash: a different sweep is refused unless ``force=True``.
+has the same shapes and compiles once) is padded to a multiple of the device
+count and laid out as a global array over ``Mesh(jax.devices(), ("batch",))``
+with ``PartitionSpec("batch")``: each device runs its slice of the chunk in one
+jitted ``vmap`` of the model's rollout. The few scalars a rollout returns are
+gathered to the host (across processes with ``process_allgather``).
 
-Under ``jax.distributed`` (several processes, one per host) process ``p`` of
-``P`` runs chunks ``p, p + P, ...`` on its own local devices into the shared
-``OUT`` folder; process 0 waits for the others and assembles the results.
+Each finished chunk is written atomically (temporary file in the same folder,
+then ``os.replace``) under ``OUT/chunks/``; ``resume=True`` skips the chunks
+already there. ``OUT/config.json`` holds the configuration and its hash: a
+different sweep is refused unless ``force=True``.
+
+Several processes (``jax.distributed``, one per host): every process runs this
+same function with the same configuration. ``jax.devices()`` is then the
+global device list, so the mesh spans every host and each chunk is one SPMD
+call in which each process feeds the rows of its own devices
+(``jax.make_array_from_callback``). Only process 0 touches ``OUT``: it checks
+and prepares the folder, decides which chunks are left (broadcast to the
+others), writes the chunk files and, in :mod:`sweeps.cli`, the results. Other
+processes return ``results=None``.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -35,7 +44,7 @@ from sweeps.models import RolloutInputs, get_model
 
 CHUNK_DIR = "chunks"
 RESULT_FILES = ("results.npz", "results.csv", "basin.png", "summary.json")
-_DELAY_ENV = "COMAN_SWEEP_CHUNK_DELAY_S"  # tests only: sleep after each chunk, to kill a run mid-sweep
+DELAY_ENV = "COMAN_SWEEP_CHUNK_DELAY_S"  # tests only: sleep after each chunk, to kill a run mid-sweep
 _FN_CACHE: dict = {}
 
 
@@ -48,12 +57,12 @@ class SweepRun(NamedTuple):
 
     Attributes:
         config: the configuration.
-        results: per-rollout arrays (inputs, outputs, ``reason``), each (n,).
-        timing: wall, compile and run seconds, rollouts and ticks per second, devices.
+        results: per-rollout arrays (inputs, outputs, ``reason``), each (n,); ``None`` on processes other than 0.
+        timing: wall, first-chunk (compile) and run seconds, rollouts and env steps per second, devices, chunks.
     """
 
     config: SweepConfig
-    results: dict
+    results: dict | None
     timing: dict
 
 
@@ -87,36 +96,52 @@ def save_bytes_atomic(path: Path, data: bytes) -> None:
     _atomic_write(Path(path), lambda f: f.write(data))
 
 
+def stored_hash(out_dir: Path) -> str | None:
+    """The config hash recorded in ``out_dir/config.json`` (``None``: none or unreadable)."""
+    try:
+        return json.loads((Path(out_dir) / "config.json").read_text()).get("hash")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
 def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool, force: bool) -> Path:
     """Create or check ``out_dir`` for ``config``; return its chunk folder.
+
+    A folder holding the same sweep is restarted (``resume=False``) or kept
+    (``resume=True``); a folder holding a different sweep is refused unless
+    ``force``, which wipes its chunks and results.
 
     Raises:
         SweepConflict: ``out_dir`` holds a different sweep and ``force`` is off.
     """
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     chunk_dir = out_dir / CHUNK_DIR
-    cfg_path = out_dir / "config.json"
     fresh = not resume
-    if cfg_path.exists():
-        try:
-            old_hash = json.loads(cfg_path.read_text()).get("hash")
-        except (OSError, ValueError):
-            old_hash = None
-        if old_hash != config.hash():
+    if (out_dir / "config.json").exists():
+        old = stored_hash(out_dir)
+        if old != config.hash():
             if not force:
-                raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old_hash} != {config.hash()}); "
-                                    "use --force to overwrite or another --out")
+                raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old} != {config.hash()}); "
+                                    "use --force to overwrite it or another --out")
             fresh = True
-    elif chunk_dir.exists():
-        fresh = True  # chunks of an unknown sweep
+    elif chunk_dir.exists() or any((out_dir / n).exists() for n in RESULT_FILES):
+        if not force:
+            raise SweepConflict(f"{out_dir} holds results of an unknown sweep (no config.json); "
+                                "use --force to overwrite them or another --out")
+        fresh = True
+    out_dir.mkdir(parents=True, exist_ok=True)
     if fresh:
         shutil.rmtree(chunk_dir, ignore_errors=True)
         for name in RESULT_FILES:
             (out_dir / name).unlink(missing_ok=True)
     chunk_dir.mkdir(exist_ok=True)
-    save_text_atomic(cfg_path, json.dumps({"hash": config.hash(), "config": config.to_dict()}, indent=1))
+    save_text_atomic(out_dir / "config.json", json.dumps({"hash": config.hash(), "config": config.to_dict()}, indent=1))
     return chunk_dir
+
+
+def chunk_path(chunk_dir: Path, i: int) -> Path:
+    """The file of chunk ``i``."""
+    return Path(chunk_dir) / f"chunk_{i:05d}.npz"
 
 
 def _chunk_fn(config: SweepConfig, rollout: Callable, devices: tuple):
@@ -124,9 +149,12 @@ def _chunk_fn(config: SweepConfig, rollout: Callable, devices: tuple):
     key = (config, rollout, devices)
     if key not in _FN_CACHE:
         mesh = Mesh(np.asarray(devices), ("batch",))
-        sharding = NamedSharding(mesh, PartitionSpec("batch"))
-        batched = jax.vmap(lambda inp: rollout(config, inp))
-        _FN_CACHE[key] = (jax.jit(batched, in_shardings=sharding, out_shardings=sharding), sharding)
+        batch = NamedSharding(mesh, PartitionSpec("batch"))
+        # Outputs stay sharded: no collective inside the call (on a small CPU the 4 host-platform
+        # "devices" share 2 cores and an in-call all-gather was seen to deadlock).
+        fn = jax.jit(jax.vmap(lambda inp, aux: rollout(config, inp, aux)), in_shardings=batch,
+                     out_shardings=batch)
+        _FN_CACHE[key] = (fn, batch)
     return _FN_CACHE[key]
 
 
@@ -137,13 +165,39 @@ def _pad(x: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([x, np.repeat(x[:1], size - len(x), axis=0)])
 
 
-def _chunk_inputs(inputs, lo: int, hi: int, padded: int, float_dtype) -> RolloutInputs:
+@functools.partial(jax.jit, static_argnums=0)
+def _rollout_keys(seed: int, index):
+    base = jax.random.PRNGKey(seed)
+    return jax.vmap(lambda i: jax.random.key_data(jax.random.fold_in(base, i)))(index)
+
+
+def rollout_keys(seed: int, index: np.ndarray) -> np.ndarray:
+    """Per-rollout PRNG key data ``key_data(fold_in(PRNGKey(seed), index))``, uint32 (n, 2)."""
+    return np.asarray(_rollout_keys(int(seed), np.asarray(index, np.int32)))
+
+
+def _chunk_inputs(inputs, keys, lo: int, hi: int, padded: int, float_dtype) -> RolloutInputs:
     return RolloutInputs(
         index=_pad(inputs.index[lo:hi], padded).astype(np.int32),
+        key=_pad(keys[lo:hi], padded),
         phase=_pad(inputs.phase[lo:hi], padded).astype(float_dtype),
         impulse_ns=_pad(inputs.impulse_ns[lo:hi], padded).astype(float_dtype),
         direction_rad=_pad(inputs.direction_rad[lo:hi], padded).astype(float_dtype),
     )
+
+
+def _global(x: np.ndarray, sharding) -> jax.Array:
+    """A global array from the same host array on every process (each feeds its own devices)."""
+    return jax.make_array_from_callback(x.shape, sharding, lambda idx: x[idx])
+
+
+def _to_host(tree):
+    """Every row of sharded outputs as NumPy arrays, on every process."""
+    if jax.process_count() == 1:
+        return jax.tree_util.tree_map(np.asarray, tree)
+    from jax.experimental import multihost_utils
+
+    return jax.tree_util.tree_map(np.asarray, multihost_utils.process_allgather(tree, tiled=True))
 
 
 def _clean(out: dict) -> dict:
@@ -158,8 +212,23 @@ def _clean(out: dict) -> dict:
 
 
 def failure_reason(fell: np.ndarray, nan: np.ndarray) -> np.ndarray:
-    """``"nan"``, ``"fell"`` or ``""`` per rollout."""
+    """``"nan"`` (numerically bad), ``"fell"`` or ``""`` (recovered) per rollout."""
     return np.where(nan, "nan", np.where(fell, "fell", ""))
+
+
+def _broadcast_from_0(x: np.ndarray) -> np.ndarray:
+    if jax.process_count() == 1:
+        return x
+    from jax.experimental import multihost_utils
+
+    return np.asarray(multihost_utils.broadcast_one_to_all(x))
+
+
+def _barrier(name: str) -> None:
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
 
 
 def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force: bool = False,
@@ -173,73 +242,94 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
     t_start = time.perf_counter()
     config.validate()
     model = get_model(config.model)
-    chunk_dir = prepare_out_dir(out_dir, config, resume=resume, force=force)
-    inputs = grid_inputs(config)
+    writer = jax.process_index() == 0
     n, chunk = config.n_rollouts, config.chunk
     n_chunks = math.ceil(n / chunk)
-    devices = tuple(jax.local_devices())
+    chunk_dir = Path(out_dir) / CHUNK_DIR
+    status = np.zeros(n_chunks + 1, np.int32)  # [conflict, done per chunk]
+    conflict = None
+    if writer:
+        try:
+            chunk_dir = prepare_out_dir(out_dir, config, resume=resume, force=force)
+            status[1:] = [chunk_path(chunk_dir, i).exists() for i in range(n_chunks)]
+        except SweepConflict as e:
+            conflict, status[0] = e, 1
+    status = _broadcast_from_0(status)
+    if status[0]:
+        raise conflict or SweepConflict(f"{out_dir} holds a different sweep (see process 0)")
+    todo = [i for i in range(n_chunks) if not status[1 + i]]
+    inputs = grid_inputs(config)
+    devices = tuple(jax.devices())
     padded = math.ceil(chunk / len(devices)) * len(devices)
-    proc, n_proc = jax.process_index(), jax.process_count()
-    mine = [i for i in range(n_chunks) if i % n_proc == proc]
-    path = lambda i: chunk_dir / f"chunk_{i:05d}.npz"  # noqa: E731
-    todo = [i for i in mine if not path(i).exists()]
-    delay_s = float(os.environ.get(_DELAY_ENV, "0") or 0)
-    compile_s = run_s = 0.0
-    done_rows = sum(min(chunk, n - i * chunk) for i in mine if i not in todo)
+    rows = lambda i: min(chunk, n - i * chunk)  # noqa: E731
+    delay_s = float(os.environ.get(DELAY_ENV, "0") or 0)
+    first_s = run_s = 0.0
+    computed: dict[int, dict] = {}
     with jax.enable_x64(config.x64):
         float_dtype = np.float64 if config.x64 else np.float32
-        fn, sharding = _chunk_fn(config, model.rollout, devices)
-        bar = _progress(sum(min(chunk, n - i * chunk) for i in mine), done_rows, progress, desc)
-        if todo:
+        keys = rollout_keys(config.seed, inputs.index)
+        fn, sharding = _chunk_fn(config.compiled_part(), model.rollout, devices)
+        bar = _progress(n, n - sum(rows(i) for i in todo), progress and writer, desc)
+        for k, i in enumerate(todo):
+            lo, hi = i * chunk, i * chunk + rows(i)
             t0 = time.perf_counter()
-            example = jax.device_put(_chunk_inputs(inputs, 0, min(chunk, n), padded, float_dtype), sharding)
-            compiled = fn.lower(example).compile()
-            compile_s = time.perf_counter() - t0
-        for i in todo:
-            lo, hi = i * chunk, min((i + 1) * chunk, n)
-            t0 = time.perf_counter()
-            batch = jax.device_put(_chunk_inputs(inputs, lo, hi, padded, float_dtype), sharding)
-            out = jax.tree_util.tree_map(np.asarray, compiled(batch))
-            run_s += time.perf_counter() - t0
-            arrays = _clean({k: np.asarray(v)[: hi - lo] for k, v in out._asdict().items()})
-            save_npz_atomic(path(i), dict(arrays, lo=np.asarray(lo), hi=np.asarray(hi)))
+            host = _chunk_inputs(inputs, keys, lo, hi, padded, float_dtype)
+            aux = None if model.prepare is None else model.prepare(config.compiled_part(), host)
+            batch, aux = jax.tree_util.tree_map(lambda x: _global(np.asarray(x), sharding), (host, aux))
+            out = _to_host(fn(batch, aux))
+            dt = time.perf_counter() - t0
+            if k == 0:
+                first_s = dt
+            else:
+                run_s += dt
+            arrays = _clean({name: np.asarray(v)[: hi - lo] for name, v in out._asdict().items()})
+            computed[i] = arrays
+            if writer:
+                save_npz_atomic(chunk_path(chunk_dir, i), dict(arrays, lo=np.asarray(lo), hi=np.asarray(hi)))
             bar.update(hi - lo)
             if delay_s:
                 time.sleep(delay_s)
         bar.close()
-    if n_proc > 1:
-        from jax.experimental import multihost_utils
-
-        multihost_utils.sync_global_devices("sweeps: all chunks written")
-    results = _assemble(inputs, [path(i) for i in range(n_chunks)], n)
+    _barrier("sweeps: all chunks written")
+    results = _assemble(inputs, [computed.get(i) or chunk_path(chunk_dir, i) for i in range(n_chunks)], n) \
+        if writer else None
     ticks = model.ticks_per_rollout(config)
-    done = sum(min((i + 1) * chunk, n) - i * chunk for i in todo)
+    done = sum(rows(i) for i in todo)
+    # Throughput over the chunks after the first (the first call also compiles); one chunk: it alone.
+    timed_rows, timed_s = (done - rows(todo[0]), run_s) if len(todo) > 1 else (done, first_s)
+    rate = timed_rows / timed_s if timed_s > 0 and timed_rows > 0 else None
     timing = dict(
-        wall_s=time.perf_counter() - t_start, compile_s=compile_s, run_s=run_s,
-        rollouts_run=done, rollouts_resumed=n - done, ticks_per_rollout=ticks,
-        rollouts_per_s=done / run_s if run_s > 0 else None,
-        env_steps_per_s=done * ticks / run_s if run_s > 0 else None,
-        device_count=len(devices), process_count=n_proc, devices=[str(d) for d in devices],
-        chunk=chunk, padded_chunk=padded, n_chunks=n_chunks,
+        wall_s=time.perf_counter() - t_start, first_chunk_s=first_s, run_s=run_s + first_s,
+        rollouts_run=done, rollouts_resumed=n - done, chunks_run=len(todo), chunks_resumed=n_chunks - len(todo),
+        ticks_per_rollout=ticks, env_step_s=None if model.env_step_s is None else model.env_step_s(config),
+        rollouts_per_s=rate, env_steps_per_s=None if rate is None else rate * ticks,
+        rate_includes_compile=len(todo) == 1,
+        device_count=len(devices), process_count=jax.process_count(), backend=jax.default_backend(),
+        devices=[str(d) for d in devices], chunk=chunk, padded_chunk=padded, n_chunks=n_chunks,
     )
     return SweepRun(config, results, timing)
 
 
 def _progress(total: int, initial: int, enabled: bool, desc: str | None):
+    """A tqdm bar on stderr: rollouts done, rollouts per second, time left."""
     from tqdm import tqdm
 
     return tqdm(total=total, initial=initial, unit="rollout", file=sys.stderr, disable=not enabled,
-                desc=desc or "sweep", dynamic_ncols=True, mininterval=0.5)
+                desc=desc or "sweep", dynamic_ncols=True, mininterval=0.5, smoothing=0.1)
 
 
-def _assemble(inputs, chunk_paths: list, n: int) -> dict:
-    """Concatenate chunk files into per-rollout arrays with the inputs and reasons."""
+def _assemble(inputs, chunks: list, n: int) -> dict:
+    """Concatenate chunk outcomes (dicts, or files of resumed chunks) into per-rollout arrays."""
     parts: dict[str, list] = {}
-    for p in chunk_paths:
-        with np.load(p) as z:
-            for k in z.files:
-                if k not in ("lo", "hi"):
-                    parts.setdefault(k, []).append(z[k])
+    for c in chunks:
+        if isinstance(c, dict):
+            items = c.items()
+        else:
+            with np.load(c) as z:
+                items = [(k, z[k]) for k in z.files]
+        for k, v in items:
+            if k not in ("lo", "hi"):
+                parts.setdefault(k, []).append(v)
     out = {k: np.concatenate(v) for k, v in parts.items()}
     if any(len(v) != n for v in out.values()):
         raise RuntimeError(f"chunks hold {len(next(iter(out.values())))} rollouts, expected {n}")
@@ -247,4 +337,3 @@ def _assemble(inputs, chunk_paths: list, n: int) -> dict:
                direction_rad=inputs.direction_rad, **out)
     res["reason"] = failure_reason(res["fell"], res["nan"])
     return res
-

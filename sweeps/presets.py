@@ -1,0 +1,60 @@
+"""Built-in sweeps: what ``coman-sweep map`` runs with no options, and ``--preset gpu``.
+
+A preset is a list of named runs, each a set of :class:`sweeps.grid.SweepConfig`
+fields; each run writes to ``OUT/<name>/``. Options given on the command line
+override the preset's fields (model-specific ones only in runs of that model).
+A run whose model cannot run yet (``mjx`` before the MJX walking controller
+exists) is skipped in ``default`` with a note, and refused in ``gpu``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from sweeps.grid import parse_impulses, parse_phases
+
+
+class PresetRun(NamedTuple):
+    """One run of a preset.
+
+    Attributes:
+        name: subfolder of ``--out``.
+        fields: :class:`sweeps.grid.SweepConfig` fields.
+        optional: skip (with a note) rather than fail when the model is unavailable.
+        note: what the run shows, printed before it.
+    """
+
+    name: str
+    fields: dict
+    optional: bool = False
+    note: str = ""
+
+
+# The full 3LP map: 32 phases x 41 impulses (0-20 N s, 0.5 N s apart) = 1,312 rollouts of 10 steps
+# (2,000 ticks of 2 ms): about 2.6 M closed-loop ticks, well under a minute on 2 CPU cores.
+_3LP_FULL = dict(model="3lp", controller="time-projection", phases=parse_phases("32"),
+                 impulses_ns=parse_impulses("0:20:41"), n_steps=10, push_step=2, chunk=512)
+
+# A small MJX map: 4 phases x 4 impulses = 16 walks of 4 s (2,000 ticks of 2 ms) on COMAN with
+# nominal sensor noise: a few minutes on 2 CPU cores, compilation included.
+_MJX_SMALL = dict(model="mjx", controller="time-projection", phases=(0.0, 0.25, 0.5, 0.75),
+                  impulses_ns=parse_impulses("0:6:4"), n_steps=10, push_step=3, chunk=16,
+                  sensor_noise_scale=1.0)
+
+# Thousands of MJX rollouts for a GPU: 32 phases x 128 impulses = 4,096 walks of 4 s, one chunk,
+# with robot randomisation (masses +-5 %, springs +-10 %, delay +-2 ticks) and nominal sensor noise.
+_MJX_GPU = dict(model="mjx", controller="time-projection", phases=parse_phases("32"),
+                impulses_ns=parse_impulses("0:12.7:128"), n_steps=10, push_step=3, chunk=4096,
+                sensor_noise_scale=1.0, randomize_mass_pct=5.0, randomize_spring_pct=10.0,
+                randomize_delay_ticks=2)
+
+PRESETS: dict[str, tuple[PresetRun, ...]] = {
+    "default": (
+        PresetRun("3lp", _3LP_FULL, note="3LP model of COMAN, time projection, full phase x impulse map"),
+        PresetRun("mjx", _MJX_SMALL, optional=True,
+                  note="MJX COMAN (springs, delay, 12-bit encoders, IMU noise), time projection, small map"),
+    ),
+    "gpu": (
+        PresetRun("mjx", _MJX_GPU, note="MJX COMAN, time projection, 4,096 randomised rollouts in one chunk"),
+    ),
+}

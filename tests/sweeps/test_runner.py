@@ -1,0 +1,78 @@
+"""sweeps.runner in process: NaN rollouts, same seed same results, the output folder's identity."""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sweeps import models, report
+from sweeps.grid import SweepConfig
+from sweeps.runner import SweepConflict, chunk_path, prepare_out_dir, run_sweep
+
+
+def _fake(config, inp, aux):
+    """Recovers below 2 N s, falls above, goes NaN above 4 N s (through its output or its own flag)."""
+    adj = jnp.where(inp.impulse_ns > 4.0, jnp.nan, 0.01 * inp.impulse_ns)
+    return models.RolloutOutputs(fell=inp.impulse_ns > 2.0, steps_to_recover=jnp.int32(2),
+                                 max_abs_footstep_adjustment_m=adj, fall_time_s=jnp.float32(jnp.inf),
+                                 nan=inp.impulse_ns > 6.0)
+
+
+@pytest.fixture
+def fake_model(monkeypatch):
+    monkeypatch.setitem(models.MODELS, "fake", models.Model(_fake, lambda c: 100))
+    monkeypatch.setitem(__import__("sweeps.grid").grid.MODEL_CONTROLLERS, "fake", ("time-projection",))
+
+
+def test_nan_rollouts_are_failures_with_a_reason_not_statistics(tmp_path, fake_model):
+    cfg = SweepConfig(model="fake", phases=(0.0, 0.5), impulses_ns=(0.0, 1.0, 3.0, 5.0, 7.0), chunk=3)
+    run = run_sweep(cfg, tmp_path, progress=False)
+    assert list(run.results["reason"][:5]) == ["", "", "fell", "nan", "nan"]
+    assert list(run.results["steps_to_recover"][:5]) == [2, 2, 2, -1, -1]
+    summary = report.write_outputs(tmp_path, run)
+    assert summary["nan"] == 4 and summary["fell"] == 2 and summary["recovery_rate"] == pytest.approx(0.4)
+    assert summary["per_phase"][0]["max_recovered_impulse_ns"] == 1.0
+    assert summary["max_abs_footstep_adjustment_m"] == pytest.approx(0.01)
+    rows = [line.split(",") for line in (tmp_path / "results.csv").read_text().splitlines()[1:]]
+    assert [r[-1] for r in rows[:5]] == ["", "", "fell", "nan", "nan"]
+    assert "NaN" not in (tmp_path / "summary.json").read_text()
+
+
+@pytest.fixture(scope="module")
+def noisy_config():
+    # sensor noise and robot randomisation: the seed decides every rollout
+    return SweepConfig(phases=(0.25, 0.75), impulses_ns=(0.0, 5.0), n_steps=4, noise_std_m=2e-3,
+                       randomize_mass_pct=10.0, randomize_leg_pct=5.0, chunk=2)
+
+
+def test_same_config_and_seed_same_results_another_seed_differs(tmp_path, noisy_config):
+    a = run_sweep(noisy_config, tmp_path / "a", progress=False).results
+    b = run_sweep(noisy_config, tmp_path / "b", progress=False).results
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    c = run_sweep(SweepConfig(**{**noisy_config.to_dict(), "phases": noisy_config.phases,
+                                 "impulses_ns": noisy_config.impulses_ns, "seed": 1}),
+                  tmp_path / "c", progress=False).results
+    assert np.all(a["max_abs_footstep_adjustment_m"] != c["max_abs_footstep_adjustment_m"])
+    assert np.all(a["max_abs_footstep_adjustment_m"][::2] > 1e-4)  # unpushed robots still step off-nominal
+
+
+def test_out_dir_identity(tmp_path):
+    a = SweepConfig(phases=(0.0,), impulses_ns=(1.0,))
+    b = SweepConfig(phases=(0.0,), impulses_ns=(1.0,), seed=1)
+    chunks = prepare_out_dir(tmp_path, a, resume=False, force=False)
+    chunk_path(chunks, 0).write_bytes(b"x")
+    assert json.loads((tmp_path / "config.json").read_text())["hash"] == a.hash() != b.hash()
+    prepare_out_dir(tmp_path, a, resume=True, force=False)
+    assert chunk_path(chunks, 0).exists()  # the same sweep, resumed: kept
+    with pytest.raises(SweepConflict, match="different sweep"):
+        prepare_out_dir(tmp_path, b, resume=True, force=False)
+    assert chunk_path(chunks, 0).exists()
+    prepare_out_dir(tmp_path, b, resume=True, force=True)
+    assert not chunk_path(chunks, 0).exists()  # forced: the other sweep's chunks are gone
+    prepare_out_dir(tmp_path, b, resume=False, force=False)  # the same sweep again, not resumed: restart
+    (tmp_path / "config.json").unlink()
+    (tmp_path / "results.npz").write_bytes(b"x")
+    with pytest.raises(SweepConflict, match="unknown sweep"):
+        prepare_out_dir(tmp_path, a, resume=False, force=False)

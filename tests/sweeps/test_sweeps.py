@@ -1,0 +1,192 @@
+"""coman-sweep end to end (subprocesses): outputs and physics of a small 3LP map, refusal to overwrite,
+resume after a kill, 4 host devices, the controller comparison; bad arguments (in process)."""
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+# 4 phases x 6 impulses (0-10 N s) of 0.1 s forward pushes during step 2 of 6 steps; 6 chunks of 4.
+GRID = ["--phases", "4", "--impulses", "0:10:6", "--n-steps", "6", "--no-progress"]
+SMALL = [*GRID, "--chunk", "4"]
+
+
+_CACHE: dict = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compile_cache(tmp_path_factory):
+    """One persistent JAX compilation cache for this module's subprocesses (same sweep, no recompiling)."""
+    _CACHE["dir"] = str(tmp_path_factory.mktemp("jax-cache"))
+    yield
+    _CACHE.clear()
+
+
+def _env(**extra):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("XLA_FLAGS", None)  # the CLI must add the CPU scheduler flag itself
+    if "dir" in _CACHE:
+        env.update(JAX_COMPILATION_CACHE_DIR=_CACHE["dir"], JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
+    env.update(extra)
+    return env
+
+
+def _sweep(args, timeout=240, **env):
+    return subprocess.run([sys.executable, "-m", "sweeps", *args], cwd=ROOT, env=_env(**env),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def _results(out: Path) -> dict:
+    with np.load(out / "results.npz") as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("args, names", [
+    (["map", "--impulses", "0:10:0"], "empty grid"),
+    (["map", "--impulses=-1,2"], "non-negative"),
+    (["map", "--phases", "0"], "--phases"),
+    (["map", "--phases", "0.5,1.5"], "[0, 1)"),
+    (["map", "--controller", "pid"], "'pid'"),
+    (["compare", "--controllers", "dlqr,pid"], "'pid'"),
+    (["map", "--model", "bullet"], "unknown model 'bullet'"),
+    (["map", "--model", "3lp", "--controller", "no-deadzone"], "'no-deadzone' for model 3lp"),
+    (["map", "--randomize-spring", "5"], "--randomize-spring applies to --model mjx"),
+    (["map", "--push-step", "12"], "push_step"),
+    (["map", "--noise", "-0.1"], "--noise"),
+])
+def test_bad_arguments_exit_2_with_one_line(args, names, tmp_path, capsys):
+    from sweeps.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main([*args, "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and names in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_bad_argument_from_the_installed_entry_point(tmp_path):
+    r = _sweep(["map", "--model", "bullet", "--out", str(tmp_path)], timeout=60)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip().splitlines() == ["coman-sweep: error: unknown model 'bullet'; choose one of 3lp, mjx"]
+
+
+def test_cli_appends_the_xla_cpu_flag_to_user_flags():
+    code = "import sweeps.cli, os; print(os.environ['XLA_FLAGS'])"
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60,
+                       env=_env(XLA_FLAGS="--xla_force_host_platform_device_count=4"))
+    flags = r.stdout.split()
+    assert "--xla_force_host_platform_device_count=4" in flags
+    assert "--xla_cpu_enable_concurrency_optimized_scheduler=false" in flags
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The small map, uninterrupted, on one device."""
+    out = tmp_path_factory.mktemp("ref")
+    r = _sweep(["map", *SMALL, "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def test_map_writes_outputs_and_the_basin_is_physical(reference):
+    for name in ("results.npz", "results.csv", "basin.png", "summary.json"):
+        assert (reference / name).stat().st_size > 0
+    summary = json.loads((reference / "summary.json").read_text())
+    assert summary["rollouts"] == 24 and summary["device_count"] == 1 and summary["chunks_run"] == 6
+    assert len(summary["per_phase"]) == 4 and summary["env_steps_per_s"] > 0 and summary["env_step_s"] == 0.002
+    lines = (reference / "results.csv").read_text().strip().splitlines()
+    assert len(lines) == 25 and lines[0].startswith("index,phase,impulse_ns,force_n")
+    res = _results(reference)
+    fell = res["fell"].reshape(4, 6)
+    # no push never falls; per phase, falls are monotone in the impulse (once it falls, larger pushes fall)
+    assert not fell[:, 0].any()
+    assert all(np.all(np.diff(row.astype(int)) >= 0) for row in fell)
+    # the largest push (10 N s = 100 N for 0.1 s) falls at some phase but not at all (60-140 N recovered)
+    assert fell[:, -1].any() and not fell[:, -1].all()
+    # pushes later in the step are recovered at least as well (time projection reacts within the step)
+    best = [row["max_recovered_impulse_ns"] for row in summary["per_phase"]]
+    assert best[2] >= best[0] and best[3] >= best[0]
+    # the footstep moves with the push: none unpushed, growing with the impulse while recovered
+    adj = res["max_abs_footstep_adjustment_m"].reshape(4, 6)
+    assert np.all(adj[:, 0] < 1e-4)
+    ok = ~fell
+    assert all(np.all(np.diff(a[o]) > 0) for a, o in zip(adj[:, 1:], ok[:, 1:]))
+    steps = res["steps_to_recover"].reshape(4, 6)
+    assert np.all(steps[fell] == -1) and np.all(steps[:, 0] == 0) and np.all(steps[ok & (steps >= 0)] <= 5)
+    assert set(res["reason"][res["fell"]]) == {"fell"} and set(res["reason"][~res["fell"]]) == {""}
+
+
+def test_other_sweep_refused_without_force(reference):
+    before = (reference / "results.npz").read_bytes()
+    r = _sweep(["map", *SMALL, "--seed", "1", "--out", str(reference)], timeout=60)
+    assert r.returncode == 2 and "different sweep" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert (reference / "results.npz").read_bytes() == before
+
+
+def test_resume_after_kill_matches_uninterrupted(reference, tmp_path):
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "sweeps", "map", *SMALL, "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(COMAN_SWEEP_CHUNK_DELAY_S="3"),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.time() + 180
+        while not list((out / "chunks").glob("chunk_*.npz")) and time.time() < deadline:
+            time.sleep(0.1)
+        proc.kill()
+    finally:
+        proc.wait()
+    done = sorted((out / "chunks").glob("chunk_*.npz"))
+    assert 1 <= len(done) < 6 and not (out / "results.npz").exists()
+    stamps = {p.name: p.stat().st_mtime_ns for p in done}
+    r = _sweep(["map", *SMALL, "--out", str(out), "--resume"])
+    assert r.returncode == 0, r.stderr
+    assert all((out / "chunks" / k).stat().st_mtime_ns == v for k, v in stamps.items())  # not rewritten
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["chunks_resumed"] == len(done) and summary["chunks_run"] == 6 - len(done)
+    assert summary["rollouts_resumed"] == 4 * len(done)
+    a, b = _results(out), _results(reference)
+    assert set(a) == set(b)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    again = _sweep(["map", *SMALL, "--out", str(out), "--resume"], timeout=60)  # nothing left to run
+    assert again.returncode == 0 and json.loads((out / "summary.json").read_text())["chunks_run"] == 0
+
+
+def test_four_devices_match_one(reference, tmp_path):
+    # chunks of 6 padded to 8 rows: 2 rollouts per device, other chunk boundaries than the reference
+    r = _sweep(["map", *GRID, "--chunk", "6", "--out", str(tmp_path)], XLA_FLAGS="--xla_force_host_platform_device_count=4")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["device_count"] == 4 and summary["chunk"] == 6 and summary["chunks_run"] == 4
+    a, b = _results(tmp_path), _results(reference)
+    for k in ("fell", "nan", "steps_to_recover", "reason", "phase", "impulse_ns"):
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    for k in ("max_abs_footstep_adjustment_m", "fall_time_s"):
+        np.testing.assert_allclose(a[k], b[k], rtol=0, atol=1e-5, err_msg=k)
+
+
+def test_compare_time_projection_recovers_late_pushes_dlqr_does_not(tmp_path):
+    r = _sweep(["compare", "--controllers", "time-projection,dlqr", "--phases", "0.5,0.625,0.75,0.875",
+                "--impulses", "0:8:5", "--n-steps", "6", "--no-progress", "--out", str(tmp_path)])
+    assert r.returncode == 0, r.stderr
+    table = json.loads((tmp_path / "compare.json").read_text())
+    assert table["controllers"] == ["time-projection", "dlqr"] and len(table["per_phase"]) == 4
+    for row in table["per_phase"]:
+        tp = row["time-projection_max_recovered_impulse_ns"] or 0.0
+        dl = row["dlqr_max_recovered_impulse_ns"] or 0.0
+        assert tp >= dl + 2.0, row  # at least one grid step more at every late phase
+    assert table["recovery_rate"]["time-projection"] > table["recovery_rate"]["dlqr"]
+    import matplotlib.image
+
+    h, w = matplotlib.image.imread(tmp_path / "compare.png").shape[:2]
+    assert w > 1.8 * h  # one figure, the two maps side by side
+    assert "largest recovered forward impulse" in r.stdout and "time-projection" in r.stdout
+    for c in ("time-projection", "dlqr"):
+        assert (tmp_path / c / "summary.json").exists()
