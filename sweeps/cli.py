@@ -57,6 +57,17 @@ def register_command(name: str, help: str, add_arguments: Callable, run: Callabl
     COMMANDS[name] = Command(help, add_arguments, run)
 
 
+def _register_tuning_commands() -> None:
+    """``coman-sweep tune`` and ``coman-sweep region`` (parsers and run functions live in their modules)."""
+    from sweeps import region_cli, tune
+
+    register_command("tune", tune.HELP, tune.add_arguments, tune.run)
+    register_command("region", region_cli.HELP, region_cli.add_arguments, region_cli.run)
+
+
+_register_tuning_commands()
+
+
 def _arg(parse):
     def conv(text):
         try:

@@ -181,3 +181,39 @@ def plot_holdout(path, runs: dict[str, list[HoldoutRun]]) -> None:
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     save_bytes_atomic(path, buf.getvalue())
+
+
+_FIELDS = ("index", "phase", "impulse_ns", "direction_rad", "fell", "nan", "steps_to_recover",
+           "max_abs_footstep_adjustment_m", "fall_time_s", "late_error")
+
+
+def save_runs(path, runs: dict[str, list[HoldoutRun]]) -> None:
+    """Per-rollout results of held-out sweeps as one ``.npz`` (atomically), configurations included."""
+    import json
+
+    from sweeps.runner import save_npz_atomic
+
+    arrays = {}
+    for name, lst in runs.items():
+        for r in lst:
+            tag = f"{name}/{r.config.direction}"
+            arrays.update({f"{tag}/{k}": np.asarray(r.results[k]) for k in _FIELDS})
+            arrays[f"{tag}/config"] = np.asarray(json.dumps(r.config.to_dict()))
+    save_npz_atomic(path, arrays)
+
+
+def load_runs(path) -> dict[str, list[HoldoutRun]]:
+    """The inverse of :func:`save_runs` (timing left empty)."""
+    import json
+
+    runs: dict[str, list[HoldoutRun]] = {}
+    with np.load(path) as z:
+        tags = sorted({k.rsplit("/", 1)[0] for k in z.files}, key=lambda t: list(z.files).index(f"{t}/index"))
+        for tag in tags:
+            cfg = json.loads(str(z[f"{tag}/config"]))
+            cfg["phases"], cfg["impulses_ns"] = tuple(cfg["phases"]), tuple(cfg["impulses_ns"])
+            res = {k: z[f"{tag}/{k}"] for k in _FIELDS}
+            res["reason"] = np.where(res["nan"], "nan", np.where(res["fell"], "fell", ""))
+            runs.setdefault(tag.split("/")[0], []).append(HoldoutRun(SweepConfig(**cfg), res, {}))
+    return runs
+

@@ -251,6 +251,7 @@ def run_holdout_validation(record: dict, out: Path | None = None, **grid) -> dic
         from sweeps.runner import save_text_atomic
 
         holdout.plot_holdout(Path(out) / "holdout.png", runs)
+        holdout.save_runs(Path(out) / "holdout.npz", runs)
         save_text_atomic(Path(out) / "holdout.json", json.dumps(dict(table, grid=_jsonable(grid)), indent=1))
     return dict(table=table, runs=runs)
 
@@ -334,7 +335,7 @@ def run(args, parser) -> int:
             print(f"  held-out grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} recovered; "
                   f"{t['settled_within_tol']} pushed walks settled under {t['recover_tol']:g}, after {steps} steps "
                   f"on average; median late landing error {t['late_error_median']:.3f}")
-        print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.png")
+        print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.npz, holdout.png")
     else:
         print(f"wrote {args.out}/tuned.json, loss.png")
     return 0

@@ -51,7 +51,7 @@ def test_seed_thresholds_come_from_figure9_of_the_training_sensors(tiny_run):
     assert 2e-3 < c["deadzone_swing_velocity_mps"] < 0.1 and 2e-3 < c["deadzone_pelvis_velocity_mps"] < 0.1
 
 
-def test_holdout_grid_recovers_small_pushes_and_not_huge_ones():
+def test_holdout_grid_recovers_small_pushes_and_not_huge_ones(tmp_path):
     cfg = holdout.holdout_configs(directions=("forward",), phases=(0.25, 0.75), impulses_ns=(0.0, 2.0, 40.0),
                                   n_steps=6)[0]
     c = O.make_constants([2e-3, 2e-3, 2e-2, 2e-2])
@@ -63,6 +63,10 @@ def test_holdout_grid_recovers_small_pushes_and_not_huge_ones():
     s = holdout.summary(run)
     assert s["recovery_rate"] == pytest.approx(4 / 6) and s["undisturbed_fell"] == 0
     assert [r["max_recovered_impulse_ns"] for r in s["per_phase"]] == [2.0, 2.0]
+    holdout.save_runs(tmp_path / "h.npz", {"seed": [run]})
+    back = holdout.load_runs(tmp_path / "h.npz")["seed"][0]
+    assert back.config == run.config
+    np.testing.assert_array_equal(back.results["fell"], res["fell"])
 
 
 @pytest.mark.parametrize("field,value", [("steps", 0), ("batch", 0), ("learning_rate", -1.0), ("n_steps", 3),
