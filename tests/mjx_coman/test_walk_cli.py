@@ -1,6 +1,11 @@
-"""``python -m mjx_coman.walk``: one-line errors with exit status 2, and one real short walk."""
+"""``python -m mjx_coman.walk``: one-line errors with exit status 2, and one real short walk.
+
+The bad-argument tests call ``main`` in-process and check that nothing is
+built before the arguments are; the real walk is a subprocess.
+"""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -9,9 +14,12 @@ import pytest
 from mjx_coman import walk as cli
 
 
-def _run(*args, timeout=600):
+SECONDS = "4"  # keep equal to tests/mjx_coman/walking/test_notebook_03.py (one shared compilation)
+
+
+def _run(*args, timeout=600, env=None):
     return subprocess.run([sys.executable, "-m", "mjx_coman.walk", *args], capture_output=True, text=True,
-                          timeout=timeout)
+                          timeout=timeout, env=env)
 
 
 @pytest.fixture
@@ -71,7 +79,10 @@ def test_push_force_is_the_impulse_over_the_duration():
 def short_walk(tmp_path_factory):
     pytest.importorskip("mjx_coman.walking.rollout")
     png = tmp_path_factory.mktemp("walk") / "walk.png"
-    out = _run("--speed", "0.0", "--seconds", "1.2", "--controller", "closed-loop", "--plot", str(png), "--json")
+    # JAX's persistent compilation cache, shared with the notebook 03 test (the same compiled walk)
+    env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(tmp_path_factory.getbasetemp() / "jax_compile_cache"))
+    out = _run("--speed", "0.0", "--seconds", SECONDS, "--controller", "closed-loop", "--plot", str(png), "--json",
+               env=env)
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout), png
 
@@ -81,7 +92,7 @@ def test_short_walk_reports_steps_and_stays_up(short_walk):
     for key in ("fell", "mean_speed_mps", "steps", "steps_to_recover", "max_abs_footstep_adjustment_m", "nan"):
         assert key in report
     assert report["fell"] is False and report["nan"] is False
-    assert report["steps"] >= 2  # 1.2 s at 0.4 s per step
+    assert report["steps"] >= 9  # 4 s at 0.4 s per step
     assert abs(report["mean_speed_mps"]) < 0.1  # in place
     assert report["steps_to_recover"] is None  # no push
     assert png.stat().st_size > 10_000
