@@ -1,0 +1,68 @@
+"""sweeps.model_mjx: per-rollout robot randomisation, the 'not available' path, a small MJX map (slow)."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from sweeps import model_mjx, models
+from sweeps.grid import SweepConfig
+
+CFG = SweepConfig(model="mjx", randomize_mass_pct=10.0, randomize_spring_pct=20.0, randomize_delay_ticks=3,
+                  encoder_offset_std_rad=0.01, sensor_noise_scale=2.0)
+
+
+def test_randomized_robots_stay_within_bounds_and_follow_the_key():
+    env = model_mjx.nominal_env(CFG.sensor_noise_scale)
+    draw = jax.jit(jax.vmap(lambda k: model_mjx.randomized_env(env, CFG, k)))
+    robots = draw(jax.random.split(jax.random.PRNGKey(0), 64))
+    m0 = np.asarray(env.model.body_mass)
+    ratio = np.asarray(robots.model.body_mass)[:, m0 > 0] / m0[m0 > 0]
+    assert np.all(np.abs(ratio - 1) <= 0.1 + 1e-6) and ratio.std() > 0.03  # spread over +-10 %
+    np.testing.assert_allclose(np.asarray(robots.model.body_inertia)[:, m0 > 0] / np.asarray(env.model.body_inertia)[m0 > 0],
+                               np.repeat(ratio[..., None], 3, -1), rtol=1e-5)  # inertia scales with the mass
+    k = np.asarray(robots.actuator.spring_stiffness_nm_per_rad) / np.asarray(env.actuator.spring_stiffness_nm_per_rad)
+    assert np.all(np.abs(k - 1) <= 0.2 + 1e-6) and k.std() > 0.05
+    delay = np.asarray(robots.actuator.delay_ticks) - int(env.actuator.delay_ticks)
+    assert set(delay.tolist()) <= set(range(-3, 4)) and len(set(delay.tolist())) >= 5
+    off = np.asarray(robots.sensor.encoder_offset_rad)
+    assert 0.007 < off.std() < 0.013
+    assert float(robots.sensor.imu_orientation_noise_rad[0]) == pytest.approx(2 * 0.002)
+    again = draw(jax.random.split(jax.random.PRNGKey(0), 64))
+    np.testing.assert_array_equal(np.asarray(again.model.body_mass), np.asarray(robots.model.body_mass))
+
+
+def test_unavailable_walking_controller_exits_2_naming_it(monkeypatch, tmp_path, capsys):
+    def missing():
+        raise ModuleNotFoundError("No module named 'mjx_coman.walking.rollout'")
+
+    monkeypatch.setattr(model_mjx, "_walking", missing)
+    monkeypatch.setattr(models, "MODELS", {k: v for k, v in models.MODELS.items() if k != "mjx"})
+    with pytest.raises(models.ModelUnavailable, match="not available yet"):
+        models.get_model("mjx")
+    models.MODELS.pop("mjx")
+    from sweeps.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["map", "--model", "mjx", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "not available yet" in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_small_mjx_map(tmp_path):
+    """2 x 2 map of 2 s walks (push in the second walking phase): unpushed walks stand, a 200 N push falls."""
+    from sweeps import report
+    from sweeps.runner import run_sweep
+
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(0.0, 20.0), n_steps=5, push_step=2, chunk=4)
+    run = run_sweep(cfg, tmp_path, progress=False)
+    summary = report.write_outputs(tmp_path, run)
+    res = run.results
+    assert not res["nan"].any()
+    assert not res["fell"][res["impulse_ns"] == 0].any() and res["fell"][res["impulse_ns"] == 20].all()
+    assert np.all(res["fall_time_s"][res["fell"]] > (cfg.push_step + res["phase"][res["fell"]]) * 0.4)
+    assert summary["env_step_s"] == 0.002 and summary["env_steps_per_rollout"] == 1000
+    assert json.loads((tmp_path / "summary.json").read_text())["model"] == "mjx"
