@@ -10,7 +10,7 @@ for ``--seconds`` and prints whether it fell, its mean speed, the number of
 steps and, with a push, the steps it took to recover. The push is a force of
 ``--push-duration`` seconds (0.1 s by default) on the upper torso whose
 impulse is ``--push-ns`` N s, starting at phase ``--push-phase`` (0 to 1) of
-step ``--push-step`` of the gait. ``--controller closed-loop`` is the seed's
+walking step ``--push-step`` (0 is the first step after the start-up phase). ``--controller closed-loop`` is the seed's
 time projection; ``open-loop`` disables the footstep adjustment,
 ``no-deadzone`` drops the dead-zones of eq. 27, ``dlqr`` adjusts once per
 step at the phase start. ``--plot`` draws the pelvis path and the footsteps.
@@ -39,6 +39,7 @@ CONTROLLERS = {
 }
 DIRECTIONS = {"forward": (1.0, 0.0), "backward": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}
 STEP_TIME_S = 0.4
+STARTUP_PHASES = 1  # the controller's start-up phase before walking step 0 (controller.init: step -1)
 MAX_SPEED_MPS = 0.3  # the stance knee reaches full extension near 0.3 m/s (open_loop docstring)
 MAX_SECONDS = 600.0
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -122,8 +123,13 @@ def push_force_n(impulse_ns: float, duration_s: float, direction: str) -> tuple[
 
 
 def push_start_s(push_step: int, push_phase: float, step_time_s: float = STEP_TIME_S) -> float:
-    """Start time of a push at phase ``push_phase`` of step ``push_step``: the walk's phase clock starts at 0."""
-    return (push_step + push_phase) * step_time_s
+    """Start time of a push at phase ``push_phase`` of walking step ``push_step``, s.
+
+    The walk begins with one start-up phase from the crouched stance
+    (``mjx_coman.walking.controller.init``: step -1), so walking step ``k``
+    starts at ``(k + 1) T``.
+    """
+    return (STARTUP_PHASES + push_step + push_phase) * step_time_s
 
 
 def run(args: argparse.Namespace) -> tuple[dict, object]:

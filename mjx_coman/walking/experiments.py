@@ -118,6 +118,7 @@ def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: in
                steps_after: int = 8, directions=("forward", "backward"), controllers=("closed-loop", "open-loop"),
                seed: int = 0, chunk: int = 64) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place)."""
+    from mjx_coman.walk import push_start_s
     from mjx_coman.walking.rollout import WalkSpec, make_push
 
     imp = np.asarray(sorted(impulses), float)
@@ -125,7 +126,7 @@ def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: in
         raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
     env, base = _setup(0.0)
     phases = np.arange(n_phases) / n_phases
-    seconds = (push_step + 1 + steps_after) * STEP_TIME_S
+    seconds = push_start_s(push_step + 1 + steps_after, 0.0)
     spec = WalkSpec(controller="time-projection", seconds=seconds)
     sign = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
     ctrl, pushes, index = [], [], []
@@ -135,7 +136,7 @@ def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: in
             for ph in phases:
                 for m in imp:
                     ctrl.append(cp)
-                    pushes.append(make_push((push_step + ph) * STEP_TIME_S, PUSH_DURATION_S,
+                    pushes.append(make_push(push_start_s(push_step, ph), PUSH_DURATION_S,
                                             impulse_ns=m, direction_rad=sign[dname]))
                     index.append((c, dname, ph, m))
     t0 = time.perf_counter()
