@@ -126,7 +126,7 @@ def summary(run: HoldoutRun) -> dict:
         late_error_median=float(np.median(res["late_error"][ok])) if ok.any() else None,
         per_phase=[dict(phase=r["phase"], max_recovered_impulse_ns=r["max_recovered_impulse_ns"],
                         recovery_rate=r["recovery_rate"]) for r in report.per_phase(cfg, res)],
-        wall_s=run.timing["wall_s"],
+        wall_s=run.timing.get("wall_s"),
     )
 
 

@@ -92,3 +92,14 @@ def test_bad_arguments_exit_2_with_one_line(args, word):
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and word in lines[0]
+
+
+@pytest.mark.slow
+def test_mjx_forward_mode_gradient_agrees_with_central_differences_on_soft_contacts():
+    """Through contact (1.2 s pushed COMAN walk, float64, foot contacts softened): AD within 15 % of differences."""
+    from sweeps.tune_mjx import NAMES, gradient_check
+
+    r = gradient_check(eps=(1e-4,), soft_contacts=True)
+    for name in NAMES:
+        ad, fd = r["gradient"][name], r["central_differences"][name][0]
+        assert ad == pytest.approx(fd, rel=0.15, abs=1e-3), name
