@@ -235,11 +235,20 @@ def _describe(summary: dict, out: Path) -> str:
     best = ", ".join(f"{r['phase']:.2f}: " + ("-" if r["max_recovered_impulse_ns"] is None
                                               else f"{r['max_recovered_impulse_ns']:g}") for r in per)
     rate = summary["rollouts_per_s"]
+    known = [(r["max_recovered_impulse_ns"] or 0.0, r["phase"]) for r in per]
+    if any(r["max_recovered_impulse_ns"] is None for r in per):
+        verdict = "some phase recovers no push of the grid, not even the smallest"
+    else:
+        dur = summary["push_duration_s"]
+        (lo, lo_ph), (hi, hi_ph) = min(known, key=lambda t: t[0]), max(known, key=lambda t: t[0])
+        verdict = (f"weakest phase {lo_ph:.2f} recovers {lo:g} N s ({lo / dur:g} N), "
+                   f"strongest phase {hi_ph:.2f} recovers {hi:g} N s ({hi / dur:g} N)")
     return (
         f"{summary['model']} / {summary['controller']}: {summary['direction']} {summary['push_duration_s']:g} s pushes "
         f"during step {summary['push_step']}: {summary['recovery_rate']:.1%} of {summary['rollouts']} rollouts recovered "
         f"({summary['fell']} fell, {summary['nan']} NaN)\n"
         f"largest recovered impulse (N s) per phase of the step: {best}\n"
+        f"{verdict}\n"
         f"{summary['rollouts_run']} rollouts run in {summary['wall_s']:.1f} s (first chunk, with compilation, "
         f"{summary['first_chunk_s']:.1f} s"
         + (f"; {rate:.3g} rollouts/s, {summary['env_steps_per_s']:.3g} env steps/s"

@@ -190,3 +190,51 @@ def test_compare_time_projection_recovers_late_pushes_dlqr_does_not(tmp_path):
     assert "largest recovered forward impulse" in r.stdout and "time-projection" in r.stdout
     for c in ("time-projection", "dlqr"):
         assert (tmp_path / c / "summary.json").exists()
+
+
+@pytest.mark.slow
+def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
+    """Two processes (one CPU device each) on one global mesh; only process 0 writes."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "mp"
+    procs = [subprocess.Popen([sys.executable, "-m", "sweeps", "map", *SMALL, "--out", str(out),
+                               "--coordinator", f"localhost:{port}", "--num-processes", "2", "--process-id", str(i)],
+                              cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for i in range(2)]
+    outs = [p.communicate(timeout=400) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [o[1][-2000:] for o in outs]
+    assert "wrote" in outs[0][0] and "wrote" not in outs[1][0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["process_count"] == 2 and summary["device_count"] == 2
+    a, b = _results(out), _results(reference)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+@pytest.mark.parametrize("argv, expected", [
+    # no grid option: the built-in default, one subfolder per run
+    (["map"], [("3lp", "3lp", 32 * 41, 512), ("mjx", "mjx", 16, 16)]),
+    (["map", "--preset", "gpu"], [("mjx", "mjx", 4096, 4096)]),
+    # options override a preset's fields; model-specific ones only in runs of that model
+    (["map", "--preset", "default", "--phases", "2", "--noise", "0.5"], [("3lp", "3lp", 2 * 41, 512),
+                                                                         ("mjx", "mjx", 8, 16)]),
+    # a grid option without --preset: one map into --out with the base defaults
+    (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
+    (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],
+     [(c, "mjx", 4, 256) for c in ("time-projection", "dlqr", "open-loop", "no-deadzone")]),
+])
+def test_presets_and_overrides(argv, expected, tmp_path):
+    from sweeps.cli import build_parser, plan_runs
+
+    plans = plan_runs(build_parser().parse_args([*argv, "--out", str(tmp_path)]))
+    got = [(str(out.relative_to(tmp_path)).replace(".", ""), cfg.model, cfg.n_rollouts, cfg.chunk)
+           for out, cfg, _, _ in plans]
+    assert got == expected
+    if "--noise" in argv:
+        assert plans[0][1].noise_std_m == 0.5 and plans[1][1].sensor_noise_scale == 0.5
+    if argv == ["map"]:
+        assert [p[2] for p in plans] == [False, True]  # the MJX map is skipped while MJX cannot run
