@@ -31,7 +31,7 @@ from jaxlp.presets import get_params
 from jaxlp.simulate import Push, SimSpec, simulate
 from sweeps import report
 from sweeps.grid import SweepConfig, grid_inputs
-from sweeps.objective import Constants, _error_norms, _sensing
+from sweeps.objective import Constants, landing_error_norms, sensing_of
 
 
 # Noisy walks never settle to the noise-free 0.02 of jaxlp.simulate: undisturbed walks with the seed's
@@ -64,14 +64,14 @@ def _rollout(config: SweepConfig, c: Constants, lateral_deadzone, bias_std_m: fl
     w = control.default_weights(params)
     weights = control.LQRWeights(w.position * c.weight_scale[0], w.velocity * c.weight_scale[1],
                                  w.torque * c.weight_scale[2])
-    sensing = _sensing(c, lateral_deadzone, jnp.asarray(config.noise_std_m, dtype), bias)
+    sensing = sensing_of(c, lateral_deadzone, jnp.asarray(config.noise_std_m, dtype), bias)
     r = simulate(params, push, spec, speed_mps=config.speed_mps, weights=weights, sensing=sensing, key=noise_key,
                  recover_tol=recover_tol)
     finite = jnp.all(jnp.isfinite(r.pelvis_m)) & jnp.all(jnp.isfinite(r.step_error))
     return dict(fell=r.fell | ~finite, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
                 max_abs_footstep_adjustment_m=jnp.max(jnp.abs(r.footstep_adjustment_m)),
                 fall_time_s=r.fall_time_s, nan=~finite,
-                late_error=jnp.mean(_error_norms(params, r.step_error)[-LATE_STEPS:]))
+                late_error=jnp.mean(landing_error_norms(params, r.step_error)[-LATE_STEPS:]))
 
 
 def run_holdout(config: SweepConfig, constants: Constants, lateral_deadzone, bias_std_m: float = 2e-3,

@@ -229,7 +229,8 @@ def sample_scenarios(key, n: int, dist: ScenarioDistribution = ScenarioDistribut
                      noise_std_m=noise, bias_m=bias, key=jax.random.split(k[7], n))
 
 
-def _sensing(c: Constants, lateral_deadzone, noise_std_m, bias_m) -> Sensing:
+def sensing_of(c: Constants, lateral_deadzone, noise_std_m, bias_m) -> Sensing:
+    """The simulator's :class:`~jaxlp.simulate.Sensing` of constants, fixed lateral thresholds and a sensor draw."""
     deadzone = jnp.stack([c.deadzone, jnp.broadcast_to(lateral_deadzone, (4,))])
     return Sensing(noise_std_m, bias_m, filters.FilterParams(c.zeta, deadzone, c.window_samples))
 
@@ -246,7 +247,7 @@ def rollout(params: ThreeLPParams, c: Constants, lateral_deadzone, scenario: Sce
     weights = control.LQRWeights(w.position * c.weight_scale[0], w.velocity * c.weight_scale[1],
                                  w.torque * c.weight_scale[2])
     return simulate(params, push, spec.sim_spec(), weights=weights,
-                    sensing=_sensing(c, lateral_deadzone, scenario.noise_std_m, scenario.bias_m),
+                    sensing=sensing_of(c, lateral_deadzone, scenario.noise_std_m, scenario.bias_m),
                     limits=limits, key=scenario.key)
 
 
@@ -283,7 +284,7 @@ def failure_margin(params: ThreeLPParams, result: Result, spec: SimSpec | Object
     return -temperature * jax.nn.logsumexp(-slack / temperature)
 
 
-def _error_norms(params: ThreeLPParams, step_error):
+def landing_error_norms(params: ThreeLPParams, step_error):
     """(n_steps,) dimensionless error size at each landing (positions in h1, velocities in sqrt(g h1))."""
     scale = jnp.concatenate([jnp.full(2, 1.0 / params.h1), jnp.full(2, 1.0 / jnp.sqrt(params.g * params.h1))])
     return jnp.sqrt(jnp.sum((step_error * scale) ** 2, axis=(-2, -1)))
@@ -315,7 +316,7 @@ def rollout_cost(params: ThreeLPParams, c: Constants, lateral_deadzone, scenario
     r = rollout(params, c, lateral_deadzone, scenario, spec)
     margin = failure_margin(params, r, spec, temperature=spec.margin_temperature)
     fall = jax.nn.sigmoid(-margin / spec.fall_scale)
-    norms = _error_norms(params, r.step_error)[spec.push_step:]
+    norms = landing_error_norms(params, r.step_error)[spec.push_step:]
     error = jnp.mean(jnp.log1p((norms / spec.error_scale) ** 2))
     hard = failure_margin(params, r, spec)
     return RolloutCost(fall + spec.error_weight * error, fall, error, margin, hard, r.fell)

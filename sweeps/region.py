@@ -37,7 +37,7 @@ import numpy as np
 
 from jaxlp.params import ThreeLPParams
 from jaxlp.simulate import Push, SimSpec, simulate
-from sweeps.objective import Constants, _sensing, failure_margin
+from sweeps.objective import Constants, failure_margin, sensing_of
 
 
 class RegionSpec(NamedTuple):
@@ -95,7 +95,7 @@ def _rollout(params: ThreeLPParams, spec: RegionSpec, constants, lateral, lane: 
     dtype = params.m1.dtype
     push = Push(start_s=(spec.push_step + phase) * spec.step_time_s, duration_s=jnp.asarray(spec.push_duration_s, dtype),
                 force_n=impulse_ns / spec.push_duration_s, direction_rad=lane.direction_rad.astype(dtype))
-    sensing = _sensing(constants, lateral, lane.noise_std_m, lane.bias_m) if spec.sensing else None
+    sensing = sensing_of(constants, lateral, lane.noise_std_m, lane.bias_m) if spec.sensing else None
     r = simulate(params, push, spec.sim_spec(), sensing=sensing, key=lane.key)
     return failure_margin(params, r, spec, temperature=spec.temperature), r.fell
 

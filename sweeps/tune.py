@@ -337,5 +337,7 @@ def run(args, parser) -> int:
                   f"on average; median late landing error {t['late_error_median']:.3f}")
         print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.npz, holdout.png")
     else:
+        if args.holdout:
+            print("  held-out push grids run on --plant 3lp only; tuned.json holds the MJX held-out pushes' loss")
         print(f"wrote {args.out}/tuned.json, loss.png")
     return 0
