@@ -69,8 +69,10 @@ from mjx_coman.walking.open_loop import (
     FIXED_LIFT_M,
     LEFT_HIP_PITCH,
     LEFT_KNEE,
+    LEFT_LEG_INDEX,
     RIGHT_HIP_PITCH,
     RIGHT_KNEE,
+    RIGHT_LEG_INDEX,
     ROLL_AMP_RAD,
     crouched_pelvis_height_m,
     hip_switch_gamma,
@@ -80,9 +82,13 @@ from mjx_coman.walking.open_loop import (
 )
 
 CONTROLLERS = ("time-projection", "no-deadzone", "dlqr", "open-loop")
+LEFT_ANKLE_PITCH = int(LEFT_LEG_INDEX[5])
+RIGHT_ANKLE_PITCH = int(RIGHT_LEG_INDEX[5])
 DEFAULT_STEP_WIDTH_M = 0.1452  # the crouched stance's feet distance (hips 2 x 0.0726 m apart)
 DEFAULT_DEADZONE = (0.004, 0.004, 0.04, 0.04)  # [e1 m, e2 m, e1_dot m/s, e2_dot m/s], Figure-9-like
 DEFAULT_KNEE_DEFLECTION_RAD = 0.012  # mu of eq. 21: knee link - motor at full support, open-loop in-place walk
+DEFAULT_ANKLE_COMPLIANCE = 0.65  # stance ankle keeps 35 % of its ~290 N m/rad (see motor_targets_block)
+DEFAULT_PELVIS_OFFSET_M = -0.03  # nominal pelvis over the ankle axis, the pivot of the compliant ankle
 MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here (open_loop docstring)
 
 
@@ -93,6 +99,7 @@ MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here 
         "h1_m", "pelvis_height_m", "lift_m", "roll_amp_rad", "adaptive_lift_gain", "foot_pitch_gain",
         "zeta", "deadzone", "footstep_gain", "truncation_m", "mu_left_rad", "mu_right_rad", "weight_n",
         "hip_switch", "posture_q_rad", "ramp_start_steps", "ramp_steps", "start_sway_m",
+        "stance_feedback", "ankle_compliance", "pelvis_offset_m",
     ],
     meta_fields=["ticks_per_step", "dt_s", "window"],
 )
@@ -125,6 +132,17 @@ class ControllerParams:
         ramp_start_steps: in-place phases before the speed ramps up.
         ramp_steps: phases over which the speed ramps from 0 to ``speed_mps``.
         start_sway_m: lateral pelvis sway of the start-up phase, m (see :func:`step`).
+        stance_feedback: share of the measured sagittal pelvis-to-stance-foot
+            vector in the stance leg's IK target (0: the nominal posture, as in the
+            seed; 1: the measured one, so the stance ankle and knee hold the actual
+            posture instead of driving the body back to the nominal one).
+        ankle_compliance: share ``c`` of the measured link angle in the stance
+            ankle pitch target, ``(1 - c) q_ik + c q_link``: it scales the stance
+            ankle's stiffness against posture errors by ``1 - c`` (see
+            :func:`motor_targets_block`).
+        pelvis_offset_m: sagittal offset of the nominal pelvis from the 3LP
+            pelvis over the stance foot point, m (negative: behind; -0.03 puts it
+            over the ankle axis, the pivot of a compliant ankle).
         ticks_per_step: n, control ticks per phase (static).
         dt_s: control period, s (static).
         window: velocity moving-average length, samples (static).
@@ -154,6 +172,9 @@ class ControllerParams:
     ramp_start_steps: jax.Array
     ramp_steps: jax.Array
     start_sway_m: jax.Array
+    stance_feedback: jax.Array
+    ankle_compliance: jax.Array
+    pelvis_offset_m: jax.Array
     ticks_per_step: int
     dt_s: float
     window: int
@@ -193,6 +214,10 @@ def make_controller_params(
     ramp_start_steps: int = 2,
     ramp_steps: int = 4,
     start_sway_m: float = 0.02,
+    stance_feedback: float = 0.0,
+    ankle_compliance: float = DEFAULT_ANKLE_COMPLIANCE,
+    pelvis_offset_m: float = DEFAULT_PELVIS_OFFSET_M,
+    max_adjustment_m: float | None = None,
     weights: control.LQRWeights | None = None,
 ) -> ControllerParams:
     """Validated controller parameters for a commanded speed (host function, not jittable).
@@ -211,10 +236,12 @@ def make_controller_params(
         mu_left_rad, mu_right_rad: knee deflections of eq. 21 (>= 0), rad.
         footstep_gain: scale of the footstep adjustment (>= 0).
         lift_m, roll_amp_rad: eq. 23 and eq. 22 amplitudes (>= 0).
-        adaptive_lift_gain, foot_pitch_gain, hip_switch: block switches in [0, 1].
+        adaptive_lift_gain, foot_pitch_gain, hip_switch, stance_feedback: block switches in [0, 1].
         knee_rad: knee flexion of the crouched posture (the env's reset posture).
         ramp_start_steps, ramp_steps: in-place phases, then phases of speed ramp (>= 0).
         start_sway_m: amplitude of the start-up sway (>= 0), m.
+        stance_feedback, ankle_compliance, pelvis_offset_m: see :class:`ControllerParams`.
+        max_adjustment_m: truncation of the footstep adjustment, m (default 0.35 ``h1``).
         weights: DLQR weights (``jaxlp.control.default_weights`` if ``None``).
 
     Raises:
@@ -259,10 +286,14 @@ def make_controller_params(
                       ("start_sway_m", start_sway_m)):
         _check(name, val, 0.0)
     for name, val in (("adaptive_lift_gain", adaptive_lift_gain), ("foot_pitch_gain", foot_pitch_gain),
-                      ("hip_switch", hip_switch)):
+                      ("hip_switch", hip_switch), ("stance_feedback", stance_feedback),
+                      ("ankle_compliance", ankle_compliance)):
         _check(name, val, 0.0, 1.0)
     _check("knee_rad", knee_rad, 0.05, 1.5)
 
+    trunc = filters.FOOTSTEP_TRUNCATION_RATIO * float(params3.h1) if max_adjustment_m is None else max_adjustment_m
+    _check("max_adjustment_m", trunc, 0.0, lo_open=True)
+    _check("pelvis_offset_m", pelvis_offset_m, -0.1, 0.1)
     g0 = gait_mod.periodic_gait(params3, T, 0.0, step_width_m)
     g1 = gait_mod.periodic_gait(params3, T, 0.1, step_width_m)
     ts = jnp.arange(n + 1) * dt
@@ -280,10 +311,11 @@ def make_controller_params(
         pelvis_height_m=a(crouched_pelvis_height_m(float(knee_rad))), lift_m=a(lift_m),
         roll_amp_rad=a(roll_amp_rad), adaptive_lift_gain=a(adaptive_lift_gain), foot_pitch_gain=a(foot_pitch_gain),
         zeta=a(zeta), deadzone=a(dz), footstep_gain=a(footstep_gain),
-        truncation_m=a(filters.FOOTSTEP_TRUNCATION_RATIO * float(params3.h1)),
+        truncation_m=a(trunc),
         mu_left_rad=a(mu_left_rad), mu_right_rad=a(mu_right_rad), weight_n=a(weight), hip_switch=a(hip_switch),
         posture_q_rad=a(posture), ramp_start_steps=a(ramp_start_steps), ramp_steps=a(ramp_steps),
-        start_sway_m=a(start_sway_m),
+        start_sway_m=a(start_sway_m), stance_feedback=a(stance_feedback), ankle_compliance=a(ankle_compliance),
+        pelvis_offset_m=a(pelvis_offset_m),
         ticks_per_step=n, dt_s=dt, window=int(window),
     )
 
@@ -329,11 +361,15 @@ def speed_factor(params: ControllerParams, step) -> jax.Array:
     return jnp.clip((step - params.ramp_start_steps + 1.0) / ramp, 0.0, 1.0)
 
 
-def nominal_at(params: ControllerParams, tick, step, d) -> jax.Array:
-    """(2, 6) nominal 3LP state at ``tick`` of phase ``step`` (lateral axis signed by ``d``; eq. 10)."""
+def nominal_at(params: ControllerParams, tick, step, d, pelvis_offset_m=0.0) -> jax.Array:
+    """(2, 6) nominal 3LP state at ``tick`` of phase ``step`` (lateral axis signed by ``d``; eq. 10).
+
+    ``pelvis_offset_m`` moves the nominal pelvis forward (sagittal), m.
+    """
     v = params.speed_mps * speed_factor(params, step)
     q = params.nominal_base[tick] + v * params.nominal_per_mps[tick]
-    return q * jnp.stack([jnp.ones_like(d), d])[:, None]
+    q = q * jnp.stack([jnp.ones_like(d), d])[:, None]
+    return q.at[0, 1].add(pelvis_offset_m)
 
 
 def footstep_block(params: ControllerParams, tick, error_sag, held_m, controller: str):
@@ -369,18 +405,24 @@ def lift_block(params: ControllerParams, t_s, error_sag, adjustment_m):
 
 
 def joint_targets_block(params: ControllerParams, q_nominal, t_s, d, adjustment_m, extra_lift_m,
-                        swing_pitch_rad, pelvis_shift_m=None, walking=1.0) -> jax.Array:
+                        swing_pitch_rad, pelvis_shift_m=None, walking=1.0, measured_s2_x=None) -> jax.Array:
     """(23,) desired joint angles: 3LP targets + lifts + footstep adjustment -> IK (Figure 3, A-B).
 
     Args:
         pelvis_shift_m: (3,) extra pelvis displacement in the heading frame (start-up sway), m.
         walking: 1 while walking, 0 in the start-up phase (no lift, no roll).
+        measured_s2_x: measured sagittal pelvis-minus-stance-foot position, m; with
+            ``stance_feedback`` it replaces the nominal one in the stance leg's target.
     """
     c = targets_from_state(q_nominal, params.step_width_m, t_s, d, params.pelvis_height_m,
                            walking * params.lift_m, walking * params.roll_amp_rad, params.step_time_s)
     shift = jnp.stack([adjustment_m, jnp.zeros_like(adjustment_m), extra_lift_m])
     pelvis = jnp.zeros(3, c.swing_m.dtype) if pelvis_shift_m is None else pelvis_shift_m
-    c = c._replace(swing_m=c.swing_m + shift - pelvis, stance_m=c.stance_m - pelvis)
+    stance = c.stance_m - pelvis
+    if measured_s2_x is not None:
+        fb = walking * params.stance_feedback
+        stance = stance.at[0].set((1.0 - fb) * stance[0] + fb * (-measured_s2_x))
+    c = c._replace(swing_m=c.swing_m + shift - pelvis, stance_m=stance)
     return joint_targets(c, d, params.posture_q_rad, swing_pitch_rad)
 
 
@@ -389,6 +431,17 @@ def motor_targets_block(params: ControllerParams, q_des, t_s, d, force_n, readin
     """Knee compensation (eq. 21) and the position form of the hip switch (eq. 24): (23,) motor targets.
 
     ``walking = 0`` (start-up phase) makes both hips track ``q_des``.
+
+    Stance ankle compliance: the stance ankle pitch target is
+    ``(1 - c) q_des + c q_link`` (``c = ankle_compliance``). The simulated
+    ankle (390 N m/rad spring in series with the 500 V/rad loop, about
+    290 N m/rad) is much stiffer than gravity's toppling (about 150 N m/rad)
+    and than the seed's worn robot (31 N m/rad, section "Effective Ankle
+    Stiffness"): a foot placed ahead by the footstep adjustment lands with the
+    ankle far from its nominal angle and the stiff ankle then throws the body
+    forward over it, against the adjustment. Blending in the measured link
+    angle leaves ``(1 - c)`` of that stiffness (the 20 ms delay of the
+    blended part acts as damping).
     """
     dl, dr = knee_compensation(force_n[1], force_n[0], params.weight_n, params.mu_left_rad, params.mu_right_rad)
     q = q_des.at[LEFT_KNEE].add(dl).at[RIGHT_KNEE].add(dr)
@@ -398,7 +451,10 @@ def motor_targets_block(params: ControllerParams, q_des, t_s, d, force_n, readin
         gamma = 1.0 - walking * params.hip_switch * (1.0 - hip_switch_gamma(t_s, params.step_time_s, swing))
         torso = readings.motor_angle_rad[idx] + pitch
         q = q.at[idx].set(gamma * q[idx] + (1.0 - gamma) * torso)
-    return q
+    c = walking * params.ankle_compliance
+    stance_ankle = jnp.where(left_swing, RIGHT_ANKLE_PITCH, LEFT_ANKLE_PITCH)
+    blended = (1.0 - c) * q[stance_ankle] + c * readings.link_angle_rad[stance_ankle]
+    return q.at[stance_ankle].set(blended)
 
 
 def step(params: ControllerParams, state: ControllerState, readings: Readings,
@@ -426,7 +482,9 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
     t = tick.astype(d.dtype) * params.dt_s
 
     walking = (step_idx >= 0).astype(d.dtype)
-    q_nom = nominal_at(params, tick, step_idx, d)
+    ramp_in = walking + (1.0 - walking) * 0.5 * (1.0 - jnp.cos(jnp.pi * t / params.step_time_s))
+    offset = params.pelvis_offset_m * ramp_in
+    q_nom = nominal_at(params, tick, step_idx, d, offset)
     raw = est.measure_relative(readings, d)
     filt, e = est.estimator_step(filt, raw, q_nom, d, params.zeta, params.dt_s)
     err = e.error[0]
@@ -437,7 +495,8 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
     lift, pitch, _ = lift_block(params, t, err, adj)
     sway = (1.0 - walking) * params.start_sway_m * jnp.sin(jnp.pi * t / params.step_time_s)
     pelvis_shift = jnp.stack([jnp.zeros_like(sway), sway, jnp.zeros_like(sway)])
-    q_des = joint_targets_block(params, q_nom, t, d, adj, walking * lift, walking * pitch, pelvis_shift, walking)
+    q_des = joint_targets_block(params, q_nom, t, d, adj, walking * lift, walking * pitch, pelvis_shift, walking,
+                                e.pos_m[0, 1])
     force = filters.iir(state.force_n, readings.foot_normal_force_n, params.zeta)
     target = motor_targets_block(params, q_des, t, d, force, readings, walking)
     new = ControllerState(tick=tick + 1, step=step_idx, d=d, filt=filt, force_n=force, error=e.error,

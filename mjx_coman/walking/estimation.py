@@ -16,8 +16,8 @@ positions are (2 axes, 2) = ``[[s1_x, s2_x], [s1_y, s2_y]]``.
 Filtering. Positions pass the IIR filter of eq. 26 (``zeta = 0.1`` per 2 ms
 tick); velocities are the differences of the filtered positions averaged over
 the last 30 ticks (:mod:`jaxlp.filters`). At a phase change the filter
-memory is carried into the new stance frame (:func:`jaxlp.filters.filter_swap`),
-so the swap is no jump for the filter.
+memory is carried into the new stance frame (:func:`estimator_swap`), so the
+swap is no jump for the filter.
 
 Error. ``e = M (q - q_bar)`` (eq. 15): per axis ``[e1, e2, e1_dot, e2_dot]``,
 the filtered state minus the nominal 3LP gait at the same phase time, the
@@ -109,22 +109,23 @@ def true_feet(data, foot_body_ids: tuple[int, int], pelvis_body_id: int) -> tupl
     Returns:
         ``(left_m (3,), right_m (3,))``.
     """
-    rot = quat_to_rot(data.xquat[pelvis_body_id])
+    rot = quat_to_rot(jnp.asarray(data.xquat[pelvis_body_id]))
     yaw = jnp.arctan2(rot[1, 0], rot[0, 0])
     to_heading = rot_z(-yaw)
-    pelvis = data.xpos[pelvis_body_id]
+    pelvis = jnp.asarray(data.xpos[pelvis_body_id])
     offset = jnp.asarray(FOOT_POINT_OFFSET_M, pelvis.dtype)
     out = []
     for b in foot_body_ids:
-        foot = data.xpos[b] + data.xmat[b].reshape(3, 3) @ offset
+        foot = jnp.asarray(data.xpos[b]) + jnp.asarray(data.xmat[b]).reshape(3, 3) @ offset
         out.append(to_heading @ (foot - pelvis))
     return out[0], out[1]
 
 
 def foot_points_world(data, foot_body_ids: tuple[int, int]) -> jax.Array:
     """(2, 3) world positions of the (left, right) foot points."""
-    offset = jnp.asarray(FOOT_POINT_OFFSET_M, data.xpos.dtype)
-    return jnp.stack([data.xpos[b] + data.xmat[b].reshape(3, 3) @ offset for b in foot_body_ids])
+    xpos, xmat = jnp.asarray(data.xpos), jnp.asarray(data.xmat)
+    offset = jnp.asarray(FOOT_POINT_OFFSET_M, xpos.dtype)
+    return jnp.stack([xpos[b] + xmat[b].reshape(3, 3) @ offset for b in foot_body_ids])
 
 
 def estimator_init(window: int = VELOCITY_WINDOW, dtype=jnp.float32) -> filters.FilterState:
@@ -173,9 +174,27 @@ def estimator_step(state: filters.FilterState, raw_m, q_nominal, d, zeta, dt_s
     return state, Estimate(raw_m, pos, vel, nominal_error(pos, vel, q_nominal, d))
 
 
+LANDED_VELOCITY_SWAP = jnp.array([[0.0, 0.0], [0.0, 1.0]])
+
+
 def estimator_swap(state: filters.FilterState) -> filters.FilterState:
-    """Carry the filter memory into the next phase's stance frame (:func:`jaxlp.filters.filter_swap`)."""
-    return filters.filter_swap(state)
+    """Carry the filter memory into the next phase's stance frame.
+
+    Positions transform exactly (``s1' = -s1``, ``s2' = s2 - s1``,
+    :data:`jaxlp.filters.SWAP_RELATIVE`). The velocity memory holds the last
+    ``window`` differences, taken while the landing foot was still moving in
+    the old frame; transforming them like the positions (as
+    :func:`jaxlp.filters.filter_swap` does, exact for the 3LP whose swing foot
+    lands at rest) would carry that stale swing velocity into the new
+    ``s2_dot`` and ``s1_dot``. With both feet on the ground at the phase
+    change, the feet are at rest relative to each other and the pelvis moves
+    relative to the new stance foot as it did relative to the old one, so the
+    memory becomes ``s1_dot' = 0``, ``s2_dot' = s2_dot``.
+    """
+    return state._replace(
+        position=state.position @ filters.SWAP_RELATIVE.T,
+        diffs=state.diffs @ LANDED_VELOCITY_SWAP.T,
+    )
 
 
 def knee_deflection_rad(readings: Readings) -> jax.Array:

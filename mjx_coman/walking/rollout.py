@@ -27,10 +27,43 @@ import numpy as np
 
 from mjx_coman import env as env_mod
 from mjx_coman import load_model
+from mjx_coman.actuators import JOINT_INDEX, default_kp_v_per_rad, make_actuator_params
 from mjx_coman.kinematics import quat_to_rot
 from mjx_coman.sensors import model_ids
 from mjx_coman.walking import controller as ctl
 from mjx_coman.walking import estimation as est
+
+
+WALKING_ANKLE_ROLL_KP_V_PER_RAD = 100.0
+
+
+def walking_env_params(ankle_roll_kp_v_per_rad: float = WALKING_ANKLE_ROLL_KP_V_PER_RAD,
+                       **actuator_kwargs) -> env_mod.EnvParams:
+    """Environment parameters for walking: the seed's gains except a stiffer ankle roll loop.
+
+    The seed sets the ankle roll gain "to a small value" (10 V/rad, eq. 25) so
+    the foot settles on the floor. On the simulated robot that ankle (22 N m/rad
+    through the motor) leaves the single-support body free to topple sideways
+    over its soft ankle roll, and every in-place walk tried with it fell
+    sideways within 2.5 s; 100 V/rad (and 500) walked. Other gains follow
+    :func:`mjx_coman.actuators.default_kp_v_per_rad`.
+
+    Args:
+        ankle_roll_kp_v_per_rad: ankle roll position gain, V/rad (> 0).
+        **actuator_kwargs: passed to :func:`mjx_coman.actuators.make_actuator_params`
+            (``kp_v_per_rad`` there overrides the gains, ankle roll included).
+
+    Raises:
+        ValueError: a non-positive gain (and what ``make_actuator_params`` rejects).
+    """
+    if not (math.isfinite(ankle_roll_kp_v_per_rad) and ankle_roll_kp_v_per_rad > 0):
+        raise ValueError(f"ankle_roll_kp_v_per_rad={ankle_roll_kp_v_per_rad!r} must be finite and positive")
+    if "kp_v_per_rad" not in actuator_kwargs:
+        kp = default_kp_v_per_rad()
+        for side in "RL":
+            kp[JOINT_INDEX[side + "AnkLat"]] = ankle_roll_kp_v_per_rad
+        actuator_kwargs["kp_v_per_rad"] = kp
+    return env_mod.make_env_params(actuator=make_actuator_params(**actuator_kwargs))
 
 
 class WalkSpec(NamedTuple):
@@ -45,8 +78,10 @@ class WalkSpec(NamedTuple):
         record_every: keep every Nth tick of the trajectories.
         fall_height_m: a pelvis lower than this above the floor is a fall, m.
         max_tilt_rad: a pelvis tilted further from upright is a fall, rad.
-        recover_tol: a phase change counts as recovered when every sagittal
-            filtered error is within ``recover_tol`` dead-zone thresholds.
+        recover_tol_m, recover_tol_mps: a phase change counts as recovered when
+            the filtered sagittal pelvis error (eq. 15, ``e2`` and ``e2_dot``, the
+            pelvis relative to the stance foot) is within these, m and m/s
+            (unpushed in-place walking stays within about 0.03 m and 0.15 m/s).
     """
 
     controller: str = "time-projection"
@@ -56,12 +91,13 @@ class WalkSpec(NamedTuple):
     record_every: int = 10
     fall_height_m: float = 0.3
     max_tilt_rad: float = 0.8
-    recover_tol: float = 3.0
+    recover_tol_m: float = 0.03
+    recover_tol_mps: float = 0.2
 
     def validate(self) -> "WalkSpec":
         if self.controller not in ctl.CONTROLLERS:
             raise ValueError(f"unknown controller {self.controller!r}; choose one of {', '.join(ctl.CONTROLLERS)}")
-        for name in ("seconds", "step_time_s", "fall_height_m", "max_tilt_rad", "recover_tol"):
+        for name in ("seconds", "step_time_s", "fall_height_m", "max_tilt_rad", "recover_tol_m", "recover_tol_mps"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name}={v!r} must be a finite positive number")
@@ -166,9 +202,9 @@ class WalkResult(NamedTuple):
         steps: phase changes done after the start-up phase (before a fall): the
             index of the last walking phase begun (the start-up phase is -1).
         steps_to_recover: phase changes after the one that ends the push until
-            the filtered sagittal error stays within ``recover_tol`` dead-zone
-            thresholds at every later phase change; 0 without a push; -1 if it
-            fell or never settled.
+            the filtered sagittal pelvis error stays within ``recover_tol_m`` and
+            ``recover_tol_mps`` at every later phase change; 0 without a push; -1
+            if it fell or never settled.
         max_abs_footstep_adjustment_m: largest |footstep adjustment| applied.
         mean_speed_mps: pelvis x displacement over time across the last half of
             the whole phases walked (at least two phases; 0 otherwise).
@@ -327,7 +363,8 @@ def walk(env_params: env_mod.EnvParams, ctrl_params: ctl.ControllerParams, push:
             knee_deflection_rad=est.knee_deflection_rad(e.readings), foot_force_n=jnp.stack([force[1], force[0]]),
             pelvis_rpy_rad=e.readings.imu_rpy_rad, target_rad=c.target, link_angle_rad=e.readings.link_angle_rad,
         )
-        return c, (e.time_s, e.data.xpos[pelvis_id], trace)
+        time = (k0 + spec.record_every).astype(f) * dt  # runs on after a fall (the env clock is frozen)
+        return c, (time, e.data.xpos[pelvis_id], trace)
 
     c, (time_s, pelvis, trace) = jax.lax.scan(record, carry0, jnp.arange(n_rec) * spec.record_every)
     steps = c.ctrl.step
@@ -336,7 +373,7 @@ def walk(env_params: env_mod.EnvParams, ctrl_params: ctl.ControllerParams, push:
     # Steps to recover: phase changes after the one ending the push until the error stays small.
     ks = jnp.arange(n_steps_max)
     done = ks <= steps
-    small = jnp.all(jnp.abs(c.phase_error) <= spec.recover_tol * ctrl_params.deadzone, axis=-1)
+    small = (jnp.abs(c.phase_error[:, 1]) <= spec.recover_tol_m) & (jnp.abs(c.phase_error[:, 3]) <= spec.recover_tol_mps)
     ok = jnp.where(done & (ks >= 1), small, True)
     settled = jnp.flip(jnp.cumprod(jnp.flip(ok))).astype(bool)  # ok from k on
     push_end = push.start_s + push.duration_s

@@ -1,0 +1,177 @@
+"""Tests of mjx_coman.walking.controller: parameters, blocks (Figure 3), phase clock, mirror symmetry."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxlp.filters import FOOTSTEP_TRUNCATION_RATIO
+from mjx_coman.actuators import JOINT_INDEX, NU
+from mjx_coman.walking import controller as ctl
+
+MIRROR_TOL_RAD = 2e-5
+LATERAL_JOINTS = ("HipLat", "HipYaw", "AnkLat")  # sign flips under the left/right mirror
+LEG_JOINTS = ("HipSag", "HipLat", "HipYaw", "KneeSag", "AnkLat", "AnkSag")
+
+
+@pytest.fixture(scope="module")
+def params():
+    return ctl.make_controller_params(None, 0.0)
+
+
+@pytest.fixture(scope="module")
+def params_fast():
+    return ctl.make_controller_params(None, 0.2)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(speed_mps=0.5), "speed_mps"),
+    (dict(speed_mps=float("nan")), "speed_mps"),
+    (dict(step_time_s=0.401), "step_time_s"),
+    (dict(zeta=0.0), "zeta"),
+    (dict(zeta=1.5), "zeta"),
+    (dict(deadzone=(0.01, 0.01, 0.1)), "deadzone"),
+    (dict(deadzone=(0.01, -0.01, 0.1, 0.1)), "deadzone"),
+    (dict(window=0), "window"),
+    (dict(mu_left_rad=-0.01), "mu_left_rad"),
+    (dict(footstep_gain=-1.0), "footstep_gain"),
+    (dict(hip_switch=2.0), "hip_switch"),
+    (dict(ankle_compliance=1.5), "ankle_compliance"),
+    (dict(step_width_m=-0.1), "step_width_m"),
+])
+def test_make_controller_params_rejects_bad_values(kwargs, name):
+    kw = dict(speed_mps=0.0) | kwargs
+    speed = kw.pop("speed_mps")
+    with pytest.raises(ValueError, match=name):
+        ctl.make_controller_params(None, speed, **kw)
+
+
+def test_params_hold_the_gait_tables(params, params_fast):
+    n = params.ticks_per_step
+    assert n == 200 and params.dt_s == pytest.approx(0.002)
+    assert params.nominal_base.shape == (n + 1, 2, 6) and params.footstep_table.shape == (n, 4)
+    # The sagittal gait is linear in the speed: the step length of the commanded speed is v T.
+    q_end = ctl.nominal_at(params_fast, n, 10, 1.0)
+    assert float(q_end[0, 0] - q_end[0, 2]) == pytest.approx(0.2 * 0.4, rel=1e-3)  # lands v T ahead of the stance foot
+    assert float(params.truncation_m) == pytest.approx(FOOTSTEP_TRUNCATION_RATIO * float(params.h1_m))
+    # In place, the speed ramp does not matter and the sagittal nominal is zero.
+    np.testing.assert_allclose(ctl.nominal_at(params, 57, 3, 1.0)[0], 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("controller", ctl.CONTROLLERS)
+@pytest.mark.parametrize("tick", [0, 77, 199])
+def test_zero_error_gives_zero_adjustment(params, controller, tick):
+    adj, _ = ctl.footstep_block(params, jnp.asarray(tick), jnp.zeros(4), jnp.asarray(0.0), controller)
+    assert float(adj) == 0.0
+    lift, pitch, theta = ctl.lift_block(params, tick * 0.002, jnp.zeros(4), adj)
+    assert float(lift) == 0.0 and float(pitch) == 0.0 and float(theta) == 0.0
+
+
+def test_footstep_adjustment_follows_table_b_and_truncates(params):
+    e = jnp.array([0.002, 0.004, -0.01, 0.03])
+    for tick in (0, 60, 150):
+        adj, _ = ctl.footstep_block(params, jnp.asarray(tick), e, jnp.asarray(0.0), "time-projection")
+        assert float(adj) == pytest.approx(float(params.footstep_table[tick] @ e), rel=1e-5)
+    # a forward pelvis error steps forward; a huge one is truncated at 0.35 h1
+    big, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, 1.0, 0.0, 3.0]), 0.0, "time-projection")
+    assert float(big) == pytest.approx(float(params.truncation_m), rel=1e-6)
+    neg, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, -1.0, 0.0, -3.0]), 0.0, "time-projection")
+    assert float(neg) == pytest.approx(-float(params.truncation_m), rel=1e-6)
+
+
+def test_dlqr_holds_the_phase_start_adjustment_and_open_loop_never_steps(params):
+    e0 = jnp.array([0.0, 0.01, 0.0, 0.05])
+    adj0, held = ctl.footstep_block(params, jnp.asarray(0), e0, jnp.asarray(0.0), "dlqr")
+    assert float(adj0) == pytest.approx(float(params.footstep_table[0] @ e0), rel=1e-5) and float(adj0) > 0
+    adj1, held1 = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "dlqr")
+    assert float(adj1) == float(adj0) and float(held1) == float(held)
+    tp, _ = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "time-projection")
+    assert float(tp) < 0  # time projection reacts to the new error at once
+    ol, _ = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "open-loop")
+    assert float(ol) == 0.0
+
+
+def test_adaptive_lift_and_foot_pitch_follow_the_leg_angle(params):
+    """Eq. 28-30: the swing leg left behind (pelvis ahead of it) gets extra lift and toes-up pitch."""
+    e = jnp.array([-0.05, 0.03, 0.0, 0.0])  # pelvis - swing 8 cm beyond the nominal
+    lift, pitch, theta = ctl.lift_block(params, 0.1, e, 0.0)
+    h1 = float(params.h1_m)
+    assert float(theta) == pytest.approx(np.arctan(0.08 / h1), rel=1e-5)
+    assert float(lift) == pytest.approx(h1 * (1 - np.cos(float(theta))) * np.sin(np.pi * 0.25), rel=1e-4)
+    assert float(pitch) == pytest.approx(-float(theta))
+    # measured from the commanded (adjusted) swing position: the adjustment itself does not count
+    lift2, _, theta2 = ctl.lift_block(params, 0.1, jnp.array([0.08, 0.0, 0.0, 0.0]), 0.08)
+    assert abs(float(theta2)) < 1e-7 and abs(float(lift2)) < 1e-9
+
+
+def _mirror(q):
+    q = np.asarray(q).copy()
+    out = q.copy()
+    for n in LEG_JOINTS:
+        sign = -1.0 if n in LATERAL_JOINTS else 1.0
+        out[JOINT_INDEX["L" + n]] = sign * q[JOINT_INDEX["R" + n]]
+        out[JOINT_INDEX["R" + n]] = sign * q[JOINT_INDEX["L" + n]]
+    return out
+
+
+@pytest.mark.parametrize("tick", [0, 40, 130])
+@pytest.mark.parametrize("adjustment", [0.0, 0.05])
+def test_leg_targets_mirror_between_phases(params_fast, tick, adjustment):
+    """d = -1 is the left/right mirror of d = +1 (sagittal joints equal, lateral ones negated)."""
+    t = tick * 0.002
+
+    def targets(d):
+        q_nom = ctl.nominal_at(params_fast, tick, 10, d)
+        return ctl.joint_targets_block(params_fast, q_nom, t, d, jnp.asarray(adjustment), jnp.asarray(0.004),
+                                       jnp.asarray(-0.05))
+
+    q_left, q_right = np.asarray(targets(1.0)), np.asarray(targets(-1.0))
+    assert q_left.shape == (NU,) and np.all(np.isfinite(q_left))
+    np.testing.assert_allclose(q_right, _mirror(q_left), atol=MIRROR_TOL_RAD)
+    # the swing (left) hip flexes further for a forward footstep adjustment
+    if adjustment > 0:
+        base = ctl.joint_targets_block(params_fast, ctl.nominal_at(params_fast, tick, 10, 1.0), t, 1.0,
+                                       jnp.asarray(0.0), jnp.asarray(0.004), jnp.asarray(-0.05))
+        assert q_left[JOINT_INDEX["LHipSag"]] < float(base[JOINT_INDEX["LHipSag"]]) - 0.05
+
+
+@pytest.fixture(scope="module")
+def rolled(params, reset_state):
+    """2 n + 2 controller ticks on the reset readings, every state recorded (one compilation)."""
+    n = params.ticks_per_step
+
+    def run(p):
+        def body(s, _):
+            s, cmd = ctl.step(p, s, reset_state.readings)
+            return s, (s.tick, s.step, s.d, cmd.target, s.adjustment_m)
+
+        return jax.lax.scan(body, ctl.init(p), None, length=2 * n + 2)
+
+    return jax.jit(run)(params)
+
+
+def test_step_runs_the_phase_clock(params, rolled):
+    """Start-up phase (-1, d = -1), then a left swing (0, d = +1), then a right swing (1, d = -1)."""
+    n = params.ticks_per_step
+    _, (tick, step, d, target, adj) = rolled
+    tick, step, d = np.asarray(tick), np.asarray(step), np.asarray(d)
+    assert target.shape == (2 * n + 2, NU) and np.all(np.isfinite(np.asarray(target)))
+    np.testing.assert_array_equal(step[:n], -1)
+    np.testing.assert_array_equal(step[n:2 * n], 0)
+    np.testing.assert_array_equal(step[2 * n:], 1)
+    np.testing.assert_array_equal(d[:n], -1.0)
+    np.testing.assert_array_equal(d[n:2 * n], 1.0)
+    np.testing.assert_array_equal(tick[[0, n - 1, n, 2 * n]], [1, n, 1, 1])
+    np.testing.assert_array_equal(np.asarray(adj)[:n], 0.0)  # no footstep adjustment before walking
+
+
+def test_start_up_phase_keeps_the_feet_down(params, rolled, reset_state):
+    """Without lift or roll the start-up targets stay near the crouched posture (sway only, a few cm)."""
+    n = params.ticks_per_step
+    _, (_, _, _, target, _) = rolled
+    dev = np.abs(np.asarray(target)[:n] - np.asarray(reset_state.actuator.motor_angle_rad)[None])
+    legs = [JOINT_INDEX[s + j] for s in "LR" for j in ("HipLat", "AnkLat", "KneeSag")]
+    assert dev[:, legs].max() < 0.15
+    assert dev[:, [JOINT_INDEX["LKneeSag"], JOINT_INDEX["RKneeSag"]]].max() < 0.05  # no knee-bending lift
