@@ -50,7 +50,7 @@ STEP_TIME_S = 0.4
 
 
 def sweep_config(seconds: float, batch: int, controller: str = "time-projection") -> SweepConfig:
-    n_steps = max(1, int(round(seconds / STEP_TIME_S)))
+    n_steps = max(1, int(round(seconds / STEP_TIME_S)) - 1)  # the walk adds its start-up phase
     return SweepConfig(model="mjx", controller=controller, phases=(0.5,), impulses_ns=(2.0,), n_steps=n_steps,
                        push_step=min(1, n_steps - 1), chunk=batch)
 

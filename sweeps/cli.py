@@ -122,11 +122,11 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
       help="push start in the step: a count N (N phases in [0, 1)) or a list 0,0.25 (default 16)")
     a("--impulses", type=_arg(parse_impulses), help="impulses in N s: start:stop:num or a list (default 0:20:41)")
     a("--direction", choices=tuple(DIRECTIONS_RAD), help="push direction (default forward)")
-    a("--push-step", type=_number("--push-step", int, 0), help="step during which the push starts (default 2)")
+    a("--push-step", type=_number("--push-step", int, 0), help="step during which the push starts (default 2; mjx: walking step, after its start-up phase)")
     a("--push-duration", type=_number("--push-duration", float, 0, True), help="push duration, s (default 0.1)")
     a("--speed", type=float, help="walking speed, m/s (default 0: in place)")
     a("--step-time", type=_number("--step-time", float, 0, True), help="step duration, s (default 0.4)")
-    a("--n-steps", type=_number("--n-steps", int, 0, True), help="steps simulated per rollout (default 10)")
+    a("--n-steps", type=_number("--n-steps", int, 0, True), help="steps simulated per rollout (default 10; mjx: plus its start-up phase)")
     a("--noise", type=_number("--noise", float, 0),
       help="3lp: sensor noise std on relative positions, m (turns the jaxlp filters on); "
            "mjx: IMU/gyro/F-T noise as a multiple of COMAN's nominal noise (default 0)")

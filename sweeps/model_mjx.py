@@ -1,10 +1,13 @@
 """The ``mjx`` sweep model: one pushed walk of COMAN in MuJoCo MJX (:func:`mjx_coman.walking.rollout.walk`).
 
 The walk starts from the crouched stance under the walking controller of
-:mod:`mjx_coman.walking.controller` (the phase clock starts at 0 with a
-start-up phase); the push, on the upper torso, starts at ``(push_step +
-phase) * step_time_s`` as in ``python -m mjx_coman.walk`` and lasts
-``push_duration_s``; the walk lasts ``n_steps * step_time_s``.
+:mod:`mjx_coman.walking.controller`, which first runs one start-up phase, so
+walking step ``k`` starts at ``(k + 1) * step_time_s``. The push, on the upper
+torso, starts at ``(push_step + 1 + phase) * step_time_s`` as in ``python -m
+mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts ``(n_steps +
+1) * step_time_s`` (the start-up phase and ``n_steps`` walking steps). The
+environment is :func:`mjx_coman.walking.rollout.walking_env_params` (the
+seed's gains with a stiffer ankle roll loop), when it exists.
 
 Per rollout, from the rollout's own PRNG key (so results do not depend on
 chunking or devices), the simulated robot may differ from the nominal one the
@@ -57,6 +60,7 @@ def nominal_env(sensor_noise_scale: float):
     from mjx_coman.env import make_env_params
     from mjx_coman.sensors import make_sensor_params
 
+    _, rollout_mod = _walking()
     with jax.ensure_compile_time_eval():
         s = sensor_noise_scale
         d = make_sensor_params()
@@ -64,6 +68,8 @@ def nominal_env(sensor_noise_scale: float):
                                     gyro_noise_rad_per_s=float(d.gyro_noise_rad_per_s) * s,
                                     ft_force_noise_n=float(d.ft_force_noise_n) * s,
                                     ft_torque_noise_nm=float(d.ft_torque_noise_nm) * s)
+        if hasattr(rollout_mod, "walking_env_params"):
+            return dataclasses.replace(rollout_mod.walking_env_params(), sensor=sensor)
         return make_env_params(control_period_s=CONTROL_PERIOD_S, sensor=sensor)
 
 
@@ -81,7 +87,7 @@ def walk_spec(config: SweepConfig):
     """The static :class:`mjx_coman.walking.rollout.WalkSpec` of a sweep."""
     _, rollout_mod = _walking()
     return rollout_mod.WalkSpec(controller=config.controller, speed_mps=None,
-                                seconds=config.n_steps * config.step_time_s, step_time_s=config.step_time_s,
+                                seconds=(config.n_steps + 1) * config.step_time_s, step_time_s=config.step_time_s,
                                 record_every=50)
 
 
@@ -132,7 +138,8 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     f = ctrl.zeta.dtype
     mag = inputs.impulse_ns / config.push_duration_s
     force = jnp.stack([mag * jnp.cos(inputs.direction_rad), mag * jnp.sin(inputs.direction_rad), 0.0 * mag])
-    push = rollout_mod.WalkPush(start_s=jnp.asarray((config.push_step + inputs.phase) * config.step_time_s, f),
+    start_s = (config.push_step + 1 + inputs.phase) * config.step_time_s  # after the start-up phase
+    push = rollout_mod.WalkPush(start_s=jnp.asarray(start_s, f),
                                 duration_s=jnp.asarray(config.push_duration_s, f), force_n=force.astype(f))
     r = rollout_mod.walk(env, ctrl, push, walk_spec(config), walk_key)
     return RolloutOutputs(

@@ -53,7 +53,7 @@ def test_unavailable_walking_controller_exits_2_naming_it(monkeypatch, tmp_path,
 
 @pytest.mark.slow
 def test_small_mjx_map(tmp_path):
-    """2 x 2 map of 2 s walks (push in the second walking phase): unpushed walks stand, a 200 N push falls."""
+    """2 x 2 map of 2.4 s walks (push in walking step 2): unpushed walks stand, a 200 N push falls."""
     from sweeps import report
     from sweeps.runner import run_sweep
 
@@ -63,6 +63,6 @@ def test_small_mjx_map(tmp_path):
     res = run.results
     assert not res["nan"].any()
     assert not res["fell"][res["impulse_ns"] == 0].any() and res["fell"][res["impulse_ns"] == 20].all()
-    assert np.all(res["fall_time_s"][res["fell"]] > (cfg.push_step + res["phase"][res["fell"]]) * 0.4)
-    assert summary["env_step_s"] == 0.002 and summary["env_steps_per_rollout"] == 1000
+    assert np.all(res["fall_time_s"][res["fell"]] > (cfg.push_step + 1 + res["phase"][res["fell"]]) * 0.4)
+    assert summary["env_step_s"] == 0.002 and summary["env_steps_per_rollout"] == 1200
     assert json.loads((tmp_path / "summary.json").read_text())["model"] == "mjx"
