@@ -137,11 +137,10 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     import jax
     import numpy as np
 
-    from mjx_coman.env import make_env_params
     from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import WalkSpec, jit_walk, make_push, no_push
+    from mjx_coman.walking.rollout import WalkSpec, jit_walk, make_push, no_push, walking_env_params
 
-    env_params = make_env_params()
+    env_params = walking_env_params()
     ctrl_params = make_controller_params(env_params, speed_mps=args.speed)
     spec = WalkSpec(controller=CONTROLLERS[args.controller], seconds=args.seconds, step_time_s=STEP_TIME_S)
     if args.push_ns > 0:

@@ -94,10 +94,10 @@ def run_batch(env_params, ctrl_list, pushes, spec, seed: int = 0, chunk: int = 6
 
 
 def _setup(speed_mps: float = 0.0, **kw):
-    from mjx_coman.env import make_env_params
     from mjx_coman.walking.controller import make_controller_params
+    from mjx_coman.walking.rollout import walking_env_params
 
-    env = make_env_params()
+    env = walking_env_params()
     return env, make_controller_params(env, speed_mps, **kw)
 
 
