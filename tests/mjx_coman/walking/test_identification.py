@@ -144,3 +144,26 @@ def test_identify_from_a_recorded_walk_leaves_out_the_start_and_the_fall():
     np.testing.assert_allclose(knee.mu_rad, 0.03, rtol=1e-5)
     with pytest.raises(ValueError, match="settle_s"):
         idn.identify_deadzones(result=rec, settle_s=-1.0)
+
+
+@pytest.mark.slow
+def test_identify_on_the_open_loop_in_place_walk():
+    """Seed Figures 7 and 9 on the simulated robot: 8 s of the open-loop in-place gait, identified once."""
+    from mjx_coman.walking.rollout import walking_env_params
+
+    env = walking_env_params()
+    walk = jax.tree_util.tree_map(np.asarray, idn.open_loop_walk(env, seconds=8.0))
+    assert not walk.fell and walk.steps >= 18
+    dz = idn.identify_deadzones(result=walk, settle_s=1.6)
+    th = np.asarray(dz.thresholds)
+    assert int(dz.n_samples) == 3201
+    assert np.all((th[:2] > 5e-4) & (th[:2] < 0.03))  # positions: mm to cm of spread
+    assert np.all((th[2:] > 5e-3) & (th[2:] < 0.3))  # velocities, m/s
+    knee = idn.identify_knee_deflection(env, result=walk, settle_s=1.6)
+    mu = np.asarray(knee.mu_rad)
+    # the loaded knee yields (link ahead of motor) by a spring-sized angle: 390 N m/rad, ~10 N m
+    assert np.all((mu > 0.005) & (mu < 0.06))
+    assert abs(mu[0] - mu[1]) < 0.2 * mu.mean()  # a symmetric robot
+    # the slope through the origin agrees with the seed's histogram mean at full support
+    np.testing.assert_allclose(knee.full_support_mean_rad, mu, rtol=0.15)
+    assert np.all(np.asarray(knee.residual_std_rad) < 0.3 * mu)
