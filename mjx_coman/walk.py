@@ -22,6 +22,7 @@ status 2 and one line on stderr naming it.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
@@ -137,8 +138,10 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     import jax
     import numpy as np
 
-    from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import WalkSpec, jit_walk, make_push, no_push, walking_env_params
+    # mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent: keep stdout for the JSON.
+    with contextlib.redirect_stdout(sys.stderr):
+        from mjx_coman.walking.controller import make_controller_params
+        from mjx_coman.walking.rollout import WalkSpec, jit_walk, make_push, no_push, walking_env_params
 
     env_params = walking_env_params()
     ctrl_params = make_controller_params(env_params, speed_mps=args.speed)

@@ -32,6 +32,7 @@ per-rollout arrays under ``"rollouts"``, left out of the JSON unless ``--rollout
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import math
@@ -302,6 +303,25 @@ def _jsonable(x):
     return x
 
 
+def _run(args):
+    if args.experiment == "push-table":
+        if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
+            sys.stderr.write("python -m mjx_coman.walking.experiments: error: --phases, --steps-after >= 1, "
+                             "--push-step >= 0 and --impulses > 0 required\n")
+            return None
+        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed)
+    elif args.experiment == "identify":
+        res = identify(args.seconds, args.settle, args.seed)
+    else:
+        if not 0 < args.seconds <= 600:
+            sys.stderr.write(f"python -m mjx_coman.walking.experiments: error: --seconds must lie in (0, 600], "
+                             f"got {args.seconds}\n")
+            return None
+        which = ("scatter", "drag", "speeds") if args.experiment == "ten" else (args.experiment,)
+        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed, which)
+    return res
+
+
 def main(argv=None) -> int:
     ap = _Parser(prog="python -m mjx_coman.walking.experiments", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="experiment", required=True, parser_class=_Parser)
@@ -322,21 +342,11 @@ def main(argv=None) -> int:
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if args.experiment == "push-table":
-        if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
-            sys.stderr.write("python -m mjx_coman.walking.experiments: error: --phases, --steps-after >= 1, "
-                             "--push-step >= 0 and --impulses > 0 required\n")
-            return 2
-        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed)
-    elif args.experiment == "identify":
-        res = identify(args.seconds, args.settle, args.seed)
-    else:
-        if not 0 < args.seconds <= 600:
-            sys.stderr.write(f"python -m mjx_coman.walking.experiments: error: --seconds must lie in (0, 600], "
-                             f"got {args.seconds}\n")
-            return 2
-        which = ("scatter", "drag", "speeds") if args.experiment == "ten" else (args.experiment,)
-        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed, which)
+    # mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent: keep stdout for the JSON.
+    with contextlib.redirect_stdout(sys.stderr):
+        res = _run(args)
+    if res is None:
+        return 2
     print(json.dumps(_jsonable(res), indent=2 if args.json else None))
     return 0
 

@@ -92,7 +92,7 @@ def test_short_walk_reports_steps_and_stays_up(short_walk):
     for key in ("fell", "mean_speed_mps", "steps", "steps_to_recover", "max_abs_footstep_adjustment_m", "nan"):
         assert key in report
     assert report["fell"] is False and report["nan"] is False
-    assert report["steps"] >= 9  # 4 s at 0.4 s per step
+    assert report["steps"] >= 8  # 4 s: the start-up phase, then walking steps 0..8
     assert abs(report["mean_speed_mps"]) < 0.1  # in place
     assert report["steps_to_recover"] is None  # no push
     assert png.stat().st_size > 10_000
