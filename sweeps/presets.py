@@ -35,10 +35,10 @@ class PresetRun(NamedTuple):
 _3LP_FULL = dict(model="3lp", controller="time-projection", phases=parse_phases("32"),
                  impulses_ns=parse_impulses("0:20:41"), n_steps=10, push_step=2, chunk=512)
 
-# A small MJX map: 4 phases x 4 impulses = 16 walks of 3.6 s (start-up phase + 8 steps, 1,800 ticks
-# of 2 ms) on COMAN with nominal sensor noise: a few minutes on 2 CPU cores, compilation included.
+# A small MJX map: 4 phases x 5 impulses (0-8 N s) = 20 walks of 3.6 s (start-up phase + 8 steps,
+# 1,800 ticks of 2 ms) on COMAN with nominal sensor noise: a few minutes on 2 CPU cores, compilation included.
 _MJX_SMALL = dict(model="mjx", controller="time-projection", phases=(0.0, 0.25, 0.5, 0.75),
-                  impulses_ns=parse_impulses("0:6:4"), n_steps=8, push_step=2, chunk=16,
+                  impulses_ns=parse_impulses("0:8:5"), n_steps=8, push_step=2, chunk=20,
                   sensor_noise_scale=1.0)
 
 # Thousands of MJX rollouts for a GPU: 32 phases x 128 impulses = 4,096 walks of 4.4 s, one chunk,

@@ -32,14 +32,18 @@ def _max_or_none(values: np.ndarray):
 
 
 def per_phase(config: SweepConfig, results: dict) -> list[dict]:
-    """Per push timing: the largest impulse recovered (N s and N) and the recovery rate."""
+    """Per push timing: the largest impulse recovered (N s and N), the largest up to which every impulse of
+    the grid was recovered (``recovered_up_to_ns``; ``None`` if the smallest fell), the recovery rate."""
     ok = recovered(results)
     rows = []
     for ph in config.phases:
         sel = np.isclose(results["phase"], ph)
         best = _max_or_none(np.where(ok[sel], results["impulse_ns"][sel], np.nan))
+        order = np.argsort(results["impulse_ns"][sel], kind="stable")
+        n_ok = int(np.cumprod(ok[sel][order]).sum())  # recovered from the smallest impulse up
+        up_to = float(results["impulse_ns"][sel][order][n_ok - 1]) if n_ok else None
         rows.append(dict(
-            phase=float(ph), max_recovered_impulse_ns=best,
+            phase=float(ph), max_recovered_impulse_ns=best, recovered_up_to_ns=up_to,
             max_recovered_force_n=None if best is None else best / config.push_duration_s,
             recovery_rate=float(np.mean(ok[sel])), nan_rollouts=int(np.sum(results["nan"][sel])),
         ))

@@ -33,6 +33,7 @@ def test_nan_rollouts_are_failures_with_a_reason_not_statistics(tmp_path, fake_m
     summary = report.write_outputs(tmp_path, run)
     assert summary["nan"] == 4 and summary["fell"] == 2 and summary["recovery_rate"] == pytest.approx(0.4)
     assert summary["per_phase"][0]["max_recovered_impulse_ns"] == 1.0
+    assert summary["per_phase"][0]["recovered_up_to_ns"] == 1.0
     assert summary["max_abs_footstep_adjustment_m"] == pytest.approx(0.01)
     rows = [line.split(",") for line in (tmp_path / "results.csv").read_text().splitlines()[1:]]
     assert [r[-1] for r in rows[:5]] == ["", "", "fell", "nan", "nan"]
