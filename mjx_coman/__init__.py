@@ -7,9 +7,16 @@ The model is generated from the CAD link table by :mod:`mjx_coman.mjcf`;
 
 from __future__ import annotations
 
+import contextlib
+import sys
 from pathlib import Path
 
 import mujoco
+
+# mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent; send it to stderr
+# so that the command lines' JSON on stdout stays parseable.
+with contextlib.redirect_stdout(sys.stderr):
+    from mujoco import mjx  # noqa: F401
 
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
 
