@@ -5,8 +5,10 @@
 * ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
   at 8 phases of one step of the in-place gait, over a grid of impulses, for
   the closed loop (time projection) and the open loop (no footstep
-  adjustment): recovered or fell, and steps to recover (seed "Intermittent
-  Push Recovery", Figures 16-17). The claim checked: at every phase the
+  adjustment): recovered (no fall in the ``--steps-after`` steps that
+  follow) or fell, settled (the filtered error back within the walk's
+  tolerance, ``WalkResult.steps_to_recover >= 0``) and steps to recover
+  (seed "Intermittent Push Recovery", Figures 16-17). The claim checked: at every phase the
   closed loop recovers an impulse at least twice the largest that the open
   loop recovers at every phase.
 * ``drag``: a constant forward or backward force on the torso for the whole
@@ -155,7 +157,8 @@ def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: in
             largest = largest_recovered(imp, ~fell[i, j])
             every[(c, dname)] = float(largest.min())
             out["tables"][f"{c}/{dname}"] = {
-                "recovered": (~fell[i, j]).astype(int).tolist(),  # [phase][impulse]
+                "recovered": (~fell[i, j]).astype(int).tolist(),  # [phase][impulse]: no fall in the window
+                "settled": (s2r[i, j] >= 0).astype(int).tolist(),  # error back within the tolerance too
                 "steps_to_recover": s2r[i, j].tolist(),
                 "largest_recovered_ns_per_phase": largest.tolist(),
                 "recovered_at_every_phase_ns": every[(c, dname)],
