@@ -17,7 +17,11 @@ tick to the motor position targets of :class:`mjx_coman.env.Command`:
    tick, from per-tick tables (the sagittal gait is linear in the speed, so
    the speed is an array and vmaps). Walking starts from the crouched stance
    in place; the speed ramps up over ``ramp_steps`` phases after
-   ``ramp_start_steps`` in-place phases.
+   ``ramp_start_steps`` in-place phases. The nominal pelvis is moved
+   ``pelvis_offset_m + lean_s v`` forward of the 3LP one (default 3 cm back,
+   over the ankle axis: the pivot of the compliant stance ankle below; the 3LP
+   foot point is 3 cm ahead of it, and a pelvis held above the foot point
+   makes the body fall forward and walk off at about 0.1 m/s).
 3. **Estimation**: link encoders + IMU -> relative pelvis/feet positions ->
    IIR (eq. 26) -> velocities -> error ``e`` (eq. 15)
    (:mod:`mjx_coman.walking.estimation`), sagittal error through the smooth
@@ -40,7 +44,12 @@ tick to the motor position targets of :class:`mjx_coman.env.Command`:
    ``v = k_p (target - theta_m)`` on the motor shaft (eq. 25), so each hip
    pitch target is ``gamma q_des + (1 - gamma)(theta_m + pitch)``, which makes
    the board apply ``k_p (gamma (q_des - theta_m) + (1 - gamma) pitch)``
-   (eq. 24; ``pitch`` the IMU pelvis pitch, forward lean > 0).
+   (eq. 24; ``pitch`` the IMU pelvis pitch, forward lean > 0). The stance
+   ankle pitch target blends in the measured link angle
+   (``ankle_compliance``, :func:`motor_targets_block`): the simulated ankle
+   is about ten times stiffer than the seed's worn one, and at full stiffness
+   it throws the body over every adjusted footstep, which turned the time
+   projection's corrections into a forward walk of 0.3 m/s in place.
 
 Controllers (static ``controller`` argument of :func:`step`):
 ``"time-projection"`` (the closed loop), ``"no-deadzone"`` (the same without
@@ -65,6 +74,7 @@ from mjx_coman.walking.controller_params import (  # noqa: F401 - re-exported
     DEFAULT_ANKLE_COMPLIANCE,
     DEFAULT_DEADZONE,
     DEFAULT_KNEE_DEFLECTION_RAD,
+    DEFAULT_LEAN_S,
     DEFAULT_PELVIS_OFFSET_M,
     DEFAULT_STEP_WIDTH_M,
     MAX_SPEED_MPS,
@@ -249,7 +259,8 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
 
     walking = (step_idx >= 0).astype(d.dtype)
     ramp_in = walking + (1.0 - walking) * 0.5 * (1.0 - jnp.cos(jnp.pi * t / params.step_time_s))
-    offset = params.pelvis_offset_m * ramp_in
+    lean = params.lean_s * params.speed_mps * speed_factor(params, step_idx)
+    offset = (params.pelvis_offset_m + lean) * ramp_in
     q_nom = nominal_at(params, tick, step_idx, d, offset)
     raw = est.measure_relative(readings, d)
     filt, e = est.estimator_step(filt, raw, q_nom, d, params.zeta, params.dt_s)

@@ -175,3 +175,17 @@ def test_start_up_phase_keeps_the_feet_down(params, rolled, reset_state):
     legs = [JOINT_INDEX[s + j] for s in "LR" for j in ("HipLat", "AnkLat", "KneeSag")]
     assert dev[:, legs].max() < 0.15
     assert dev[:, [JOINT_INDEX["LKneeSag"], JOINT_INDEX["RKneeSag"]]].max() < 0.05  # no knee-bending lift
+
+
+@pytest.mark.parametrize("controller", ["no-deadzone", "dlqr", "open-loop"])
+def test_every_controller_steps(params, reset_state, controller):
+    """One jitted tick per controller variant: finite targets of the right shape, the clock started."""
+    state, cmd = jax.jit(ctl.step, static_argnames="controller")(params, ctl.init(params), reset_state.readings,
+                                                                   controller=controller)
+    assert cmd.target.shape == (NU,) and np.all(np.isfinite(np.asarray(cmd.target)))
+    assert int(state.tick) == 1 and int(state.step) == -1 and not bool(cmd.voltage_mode)
+
+
+def test_unknown_controller_is_rejected(params, reset_state):
+    with pytest.raises(ValueError, match="closed-loop"):
+        ctl.step(params, ctl.init(params), reset_state.readings, controller="closed-loop")
