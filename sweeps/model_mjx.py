@@ -57,10 +57,10 @@ def _walking():
 @functools.lru_cache(maxsize=4)
 def nominal_env(sensor_noise_scale: float):
     """The nominal robot's environment parameters with the sensor noise scaled (host-built, cached)."""
+    _, rollout_mod = _walking()  # first: imports mujoco.mjx quietly
     from mjx_coman.env import make_env_params
     from mjx_coman.sensors import make_sensor_params
 
-    _, rollout_mod = _walking()
     with jax.ensure_compile_time_eval():
         s = sensor_noise_scale
         d = make_sensor_params()
