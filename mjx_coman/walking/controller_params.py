@@ -43,7 +43,7 @@ MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here 
         "stance_feedback", "ankle_compliance", "pelvis_offset_m", "stance_deadzone_m",
         "lean_s",
     ],
-    meta_fields=["ticks_per_step", "dt_s", "window"],
+    meta_fields=["ticks_per_step", "dt_s", "window", "knee_rad"],
 )
 @dataclasses.dataclass(frozen=True)
 class ControllerParams:
@@ -95,6 +95,9 @@ class ControllerParams:
         ticks_per_step: n, control ticks per phase (static).
         dt_s: control period, s (static).
         window: velocity moving-average length, samples (static).
+        knee_rad: knee flexion of the crouched posture the walk starts from and
+            the IK keeps (static; :func:`mjx_coman.walking.rollout.walk` resets the
+            env to it).
     """
 
     nominal_base: jax.Array
@@ -129,6 +132,7 @@ class ControllerParams:
     ticks_per_step: int
     dt_s: float
     window: int
+    knee_rad: float = 0.4
 
     def replace(self, **kw) -> "ControllerParams":
         return dataclasses.replace(self, **kw)
@@ -273,7 +277,7 @@ def make_controller_params(
         start_sway_m=a(start_sway_m), stance_feedback=a(stance_feedback), ankle_compliance=a(ankle_compliance),
         pelvis_offset_m=a(pelvis_offset_m), stance_deadzone_m=a(stance_deadzone_m),
         lean_s=a(lean_s),
-        ticks_per_step=n, dt_s=dt, window=int(window),
+        ticks_per_step=n, dt_s=dt, window=int(window), knee_rad=float(knee_rad),
     )
 
 

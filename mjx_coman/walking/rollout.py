@@ -311,7 +311,7 @@ def walk(env_params: env_mod.EnvParams, ctrl_params: ctl.ControllerParams, push:
     foot_ids = foot_body_ids()
     pelvis_id = model_ids()["pelvis_body"]
 
-    env0 = env_mod.reset(key, env_params)
+    env0 = env_mod.reset(key, env_params, ctrl_params.knee_rad)
     f = env0.time_s.dtype
     nanpad = lambda *shape: jnp.full(shape, jnp.nan, f)  # noqa: E731
     feet0 = est.foot_points_world(env0.data, foot_ids)
