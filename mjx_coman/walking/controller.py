@@ -269,6 +269,9 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
         err = filters.smooth_deadzone(err, params.deadzone)
     adj, held = footstep_block(params, tick, err, state.held_m, controller)
     adj = walking * adj
+    previous = jnp.where(swap, 0.0, state.adjustment_m)  # a new swing leg starts from its nominal target
+    alpha = params.dt_s / (params.adjustment_tau_s + params.dt_s)
+    adj = previous + alpha * (adj - previous)
     lift, pitch, _ = lift_block(params, t, err, adj)
     sway = (1.0 - walking) * params.start_sway_m * jnp.sin(jnp.pi * t / params.step_time_s)
     pelvis_shift = jnp.stack([jnp.zeros_like(sway), sway, jnp.zeros_like(sway)])

@@ -41,7 +41,7 @@ MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here 
         "zeta", "deadzone", "footstep_gain", "truncation_m", "mu_left_rad", "mu_right_rad", "weight_n",
         "hip_switch", "posture_q_rad", "ramp_start_steps", "ramp_steps", "start_sway_m",
         "stance_feedback", "ankle_compliance", "pelvis_offset_m", "stance_deadzone_m",
-        "lean_s",
+        "lean_s", "adjustment_tau_s",
     ],
     meta_fields=["ticks_per_step", "dt_s", "window", "knee_rad"],
 )
@@ -85,6 +85,8 @@ class ControllerParams:
         stance_deadzone_m: threshold of that dead-zone, m.
         lean_s: forward pelvis offset per commanded speed, s (m per m/s): moves
             the nominal pelvis ahead by ``lean_s v`` while walking at ``v``.
+        adjustment_tau_s: time constant of a first-order filter on the applied
+            footstep adjustment, s (0: applied at once, as the seed does).
         ankle_compliance: share ``c`` of the measured link angle in the stance
             ankle pitch target, ``(1 - c) q_ik + c q_link``: it scales the stance
             ankle's stiffness against posture errors by ``1 - c`` (see
@@ -129,6 +131,7 @@ class ControllerParams:
     pelvis_offset_m: jax.Array
     stance_deadzone_m: jax.Array
     lean_s: jax.Array
+    adjustment_tau_s: jax.Array
     ticks_per_step: int
     dt_s: float
     window: int
@@ -175,6 +178,7 @@ def make_controller_params(
     max_adjustment_m: float | None = None,
     stance_deadzone_m: float = 0.02,
     lean_s: float = DEFAULT_LEAN_S,
+    adjustment_tau_s: float = 0.0,
     weights: control.LQRWeights | None = None,
 ) -> ControllerParams:
     """Validated controller parameters for a commanded speed (host function, not jittable).
@@ -197,7 +201,7 @@ def make_controller_params(
         knee_rad: knee flexion of the crouched posture (the env's reset posture).
         ramp_start_steps, ramp_steps: in-place phases, then phases of speed ramp (>= 0).
         start_sway_m: amplitude of the start-up sway (>= 0), m.
-        stance_feedback, ankle_compliance, pelvis_offset_m, stance_deadzone_m, lean_s: see
+        stance_feedback, ankle_compliance, pelvis_offset_m, stance_deadzone_m, lean_s, adjustment_tau_s: see
             :class:`ControllerParams`.
         max_adjustment_m: truncation of the footstep adjustment, m (default 0.35 ``h1``).
         weights: DLQR weights (``jaxlp.control.default_weights`` if ``None``).
@@ -254,6 +258,7 @@ def make_controller_params(
     _check("pelvis_offset_m", pelvis_offset_m, -0.1, 0.1)
     _check("stance_deadzone_m", stance_deadzone_m, 0.0, lo_open=True)
     _check("lean_s", lean_s, 0.0, 0.5)
+    _check("adjustment_tau_s", adjustment_tau_s, 0.0, 1.0)
     g0 = gait_mod.periodic_gait(params3, T, 0.0, step_width_m)
     g1 = gait_mod.periodic_gait(params3, T, 0.1, step_width_m)
     ts = jnp.arange(n + 1) * dt
@@ -276,7 +281,7 @@ def make_controller_params(
         posture_q_rad=a(posture), ramp_start_steps=a(ramp_start_steps), ramp_steps=a(ramp_steps),
         start_sway_m=a(start_sway_m), stance_feedback=a(stance_feedback), ankle_compliance=a(ankle_compliance),
         pelvis_offset_m=a(pelvis_offset_m), stance_deadzone_m=a(stance_deadzone_m),
-        lean_s=a(lean_s),
+        lean_s=a(lean_s), adjustment_tau_s=a(adjustment_tau_s),
         ticks_per_step=n, dt_s=dt, window=int(window), knee_rad=float(knee_rad),
     )
 
