@@ -28,6 +28,7 @@ from mjx_coman.walking.rollout import (
     make_push,
     no_push,
     walk,
+    walking_env_params,
 )
 
 __all__ = [
@@ -54,4 +55,5 @@ __all__ = [
     "position_voltage",
     "targets_from_state",
     "walk",
+    "walking_env_params",
 ]
