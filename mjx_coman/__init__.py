@@ -8,14 +8,15 @@ The model is generated from the CAD link table by :mod:`mjx_coman.mjcf`;
 from __future__ import annotations
 
 import contextlib
-import sys
+import io
 from pathlib import Path
 
 import mujoco
 
-# mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent; send it to stderr
-# so that the command lines' JSON on stdout stays parseable.
-with contextlib.redirect_stdout(sys.stderr):
+# mujoco.mjx prints "Failed to import warp" on stdout when the optional Warp backend is absent
+# (always, on CPU); swallow that notice so that the command lines' JSON on stdout stays parseable
+# and their one-line errors on stderr stay one line.
+with contextlib.redirect_stdout(io.StringIO()):
     from mujoco import mjx  # noqa: F401
 
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
