@@ -3,7 +3,7 @@
     coman-sweep map                       # the built-in default: full 3LP map (+ small MJX map)
     coman-sweep map --preset gpu          # thousands of MJX rollouts
     coman-sweep map [--model 3lp|mjx] [--controller time-projection] [--phases 16] [--impulses 0:20:41]
-                    [--direction forward] [--noise X] [--bias X] [--randomize PCT] [--seed 0]
+                    [--direction forward] [--noise X] [--bias X] [--randomize PCT] [--constants tuned.json] [--seed 0]
                     [--chunk 256] [--out sweep-map] [--resume] [--force]
     coman-sweep compare [--controllers time-projection,dlqr,open-loop] [same grid options] [--out sweep-compare]
 
@@ -140,6 +140,9 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
       help="mjx: per-rollout uniform +-%% on the SEA spring stiffness (default 0)")
     a("--randomize-delay", type=_number("--randomize-delay", int, 0),
       help="mjx: per-rollout uniform +-ticks (2 ms) on the 20 ms transport delay (default 0)")
+    a("--constants", type=Path,
+      help="mjx: the controller's dead-zones, zeta and velocity window from a tuned.json of coman-sweep tune "
+           "(its tuned constants) or a flat JSON of them (default: the controller's)")
     a("--seed", type=int, help="PRNG seed (default 0)")
     a("--chunk", type=_number("--chunk", int, 0, True), help="rollouts per jitted call (default 256)")
     a("--x64", action="store_true", default=None, help="simulate in 64-bit floats")
@@ -185,6 +188,16 @@ def _overrides(args, model: str, strict: bool) -> dict:
     out = {field: getattr(args, opt) for opt, field in _FIELDS.items() if getattr(args, opt, None) is not None}
     if getattr(args, "x64", None):
         out["x64"] = True
+    if getattr(args, "constants", None) is not None:
+        if model == "mjx":
+            from sweeps.holdout_mjx import load_constants
+
+            try:
+                out.update(load_constants(args.constants))
+            except ValueError as e:
+                raise GridError(f"--constants: {e}") from None
+        elif strict:
+            raise GridError("--constants applies to --model mjx only")
     for opt, per_model in _MODEL_FIELDS.items():
         val = getattr(args, opt, None)
         if val is None:
@@ -198,7 +211,7 @@ def _overrides(args, model: str, strict: bool) -> dict:
 
 def _given(args) -> bool:
     """Whether any grid or controller option was given."""
-    opts = (*_FIELDS, *_MODEL_FIELDS, "x64", "controller", "controllers")
+    opts = (*_FIELDS, *_MODEL_FIELDS, "x64", "controller", "controllers", "constants")
     return any(getattr(args, o, None) is not None for o in opts)
 
 
@@ -216,6 +229,8 @@ def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
                 fields["controller"] = args.controller
             plans.append((out / run.name, SweepConfig(**fields).validate(), run.optional, run.note))
         models = {p[1].model for p in plans}
+        if getattr(args, "constants", None) is not None and "mjx" not in models:
+            raise GridError("--constants applies to --model mjx only")
         for opt, per_model in _MODEL_FIELDS.items():  # an option that applies to none of the runs
             if getattr(args, opt, None) is not None and not models & set(per_model):
                 raise GridError(f"--{opt.replace('_', '-')} applies to --model {', '.join(per_model)} only")

@@ -25,6 +25,9 @@ MODEL_CONTROLLERS = {
 CONTROLLERS = ("time-projection", "dlqr", "open-loop", "no-deadzone")
 
 
+CONSTANT_FIELDS = ("deadzone", "zeta", "velocity_window")  # MJX controller constants (None: the defaults)
+
+
 class GridError(ValueError):
     """A bad sweep configuration (the command line turns it into exit status 2)."""
 
@@ -112,6 +115,10 @@ class SweepConfig:
         randomize_spring_pct: MJX: per-rollout uniform +-% on the SEA spring stiffness (one factor per joint).
         randomize_delay_ticks: MJX: per-rollout uniform integer offset in [-k, k] control ticks on the
             transport delay (nominal 10 ticks = 20 ms).
+        deadzone: MJX: the four sagittal dead-zone thresholds of eq. 27 ``[e1 m, e2 m, e1_dot m/s,
+            e2_dot m/s]`` of the walking controller (``None``: its defaults).
+        zeta: MJX: the IIR constant of eq. 26 per 2 ms tick (``None``: 0.1).
+        velocity_window: MJX: the velocity moving-average length, samples (``None``: 30).
         seed: PRNG seed.
         chunk: rollouts per chunk (one jitted call; also the resume unit).
         x64: simulate in 64-bit floats.
@@ -136,6 +143,9 @@ class SweepConfig:
     encoder_offset_std_rad: float = 0.0
     randomize_spring_pct: float = 0.0
     randomize_delay_ticks: int = 0
+    deadzone: tuple[float, ...] | None = None
+    zeta: float | None = None
+    velocity_window: int | None = None
     seed: int = 0
     chunk: int = 256
     x64: bool = False
@@ -174,6 +184,17 @@ class SweepConfig:
                 if self.model != model and getattr(self, name) != 0:
                     raise GridError(f"{name} applies to --model {model} only, got {getattr(self, name)} "
                                     f"with --model {self.model}")
+        constants = {name: getattr(self, name) for name in CONSTANT_FIELDS if getattr(self, name) is not None}
+        if constants and self.model != "mjx":
+            raise GridError(f"{next(iter(constants))} (controller constants) applies to --model mjx only")
+        if self.deadzone is not None and (len(self.deadzone) != 4 or not all(
+                math.isfinite(v) and v > 0 for v in self.deadzone)):
+            raise GridError(f"deadzone must be 4 finite positive thresholds, got {list(self.deadzone)}")
+        if self.zeta is not None and not (math.isfinite(self.zeta) and 0 < self.zeta <= 1):
+            raise GridError(f"zeta must lie in (0, 1], got {self.zeta}")
+        if self.velocity_window is not None and (int(self.velocity_window) != self.velocity_window
+                                                 or self.velocity_window < 1):
+            raise GridError(f"velocity_window must be a whole number of samples >= 1, got {self.velocity_window}")
         if self.push_step < 0 or self.push_step >= self.n_steps:
             raise GridError(f"push_step must lie in [0, n_steps={self.n_steps}), got {self.push_step}")
         if not 0 <= self.seed < 2**32:
@@ -198,8 +219,15 @@ class SweepConfig:
         return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1)
 
     def to_dict(self) -> dict:
+        """Every field as JSON values; controller constants left at their defaults (``None``) are left
+        out, so sweeps from before those fields existed keep their hash."""
         d = dataclasses.asdict(self)
         d["phases"], d["impulses_ns"] = list(self.phases), list(self.impulses_ns)
+        for name in CONSTANT_FIELDS:
+            if d[name] is None:
+                del d[name]
+            elif name == "deadzone":
+                d[name] = list(d[name])
         return d
 
     def hash(self) -> str:

@@ -111,7 +111,11 @@ def run_holdout(config: SweepConfig, constants: Constants, lateral_deadzone, bia
 
 
 def summary(run: HoldoutRun) -> dict:
-    """Recovery rate, steps to recover and the largest recovered impulse per phase of a held-out sweep."""
+    """Recovery rate, steps to recover and the largest recovered impulse per phase of a held-out sweep.
+
+    Also takes a :class:`sweeps.runner.SweepRun` (the MJX held-out sweeps of :mod:`sweeps.holdout_mjx`,
+    which have no ``late_error``).
+    """
     res, cfg = run.results, run.config
     ok = report.recovered(res)
     pushed = res["impulse_ns"] > 0
@@ -123,7 +127,7 @@ def summary(run: HoldoutRun) -> dict:
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
-        late_error_median=float(np.median(res["late_error"][ok])) if ok.any() else None,
+        late_error_median=float(np.median(res["late_error"][ok])) if ok.any() and "late_error" in res else None,
         per_phase=[dict(phase=r["phase"], max_recovered_impulse_ns=r["max_recovered_impulse_ns"],
                         recovery_rate=r["recovery_rate"]) for r in report.per_phase(cfg, res)],
         wall_s=run.timing.get("wall_s"),
@@ -148,10 +152,12 @@ def compare(runs: dict[str, list[HoldoutRun]]) -> dict:
         steps = np.concatenate([r.results["steps_to_recover"][report.recovered(r.results)
                                                               & (r.results["impulse_ns"] > 0)] for r in lst])
         settled = steps[steps >= 0]
-        late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst])
+        late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst
+                               if "late_error" in r.results] or [np.zeros(0)])
         out[name] = dict(recovery_rate=float(np.mean(ok)), rollouts=int(ok.size),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
-                         settled_within_tol=int(settled.size), recover_tol=RECOVER_TOL,
+                         settled_within_tol=int(settled.size),
+                         recover_tol=RECOVER_TOL if lst[0].config.model == "3lp" else None,
                          late_error_median=float(np.median(late)) if late.size else None,
                          per_direction=per)
     return out
@@ -197,7 +203,7 @@ def save_runs(path, runs: dict[str, list[HoldoutRun]]) -> None:
     for name, lst in runs.items():
         for r in lst:
             tag = f"{name}/{r.config.direction}"
-            arrays.update({f"{tag}/{k}": np.asarray(r.results[k]) for k in _FIELDS})
+            arrays.update({f"{tag}/{k}": np.asarray(r.results[k]) for k in _FIELDS if k in r.results})
             arrays[f"{tag}/config"] = np.asarray(json.dumps(r.config.to_dict()))
     save_npz_atomic(path, arrays)
 
@@ -212,7 +218,9 @@ def load_runs(path) -> dict[str, list[HoldoutRun]]:
         for tag in tags:
             cfg = json.loads(str(z[f"{tag}/config"]))
             cfg["phases"], cfg["impulses_ns"] = tuple(cfg["phases"]), tuple(cfg["impulses_ns"])
-            res = {k: z[f"{tag}/{k}"] for k in _FIELDS}
+            if cfg.get("deadzone") is not None:
+                cfg["deadzone"] = tuple(cfg["deadzone"])
+            res = {k: z[f"{tag}/{k}"] for k in _FIELDS if f"{tag}/{k}" in z.files}
             res["reason"] = np.where(res["nan"], "nan", np.where(res["fell"], "fell", ""))
             runs.setdefault(tag.split("/")[0], []).append(HoldoutRun(SweepConfig(**cfg), res, {}))
     return runs

@@ -20,8 +20,10 @@ controller was designed for:
   (0: noise-free; the 12-bit encoders always quantise);
 * ``encoder_offset_std_rad``: constant link encoder offsets ``N(0, std)`` per joint.
 
-The controller parameters stay nominal (built once on the host by
-:func:`mjx_coman.walking.controller.make_controller_params`). Everything
+The controller parameters are built once on the host by
+:func:`mjx_coman.walking.controller.make_controller_params`, with the
+configuration's estimation constants (``deadzone``, ``zeta``,
+``velocity_window``; e.g. tuned ones) where it sets them. Everything
 randomised is an array leaf of the environment parameters, built inside the
 vmapped rollout, which is the same as vmapping ``walk`` with the axes of
 :func:`mjx_coman.env.batch_axes` (``model_fields=("body_mass", "body_inertia")``).
@@ -78,8 +80,10 @@ def nominal(config: SweepConfig):
     """``(env_params, ctrl_params)`` of the nominal robot (host-built, cached per configuration)."""
     controller, _ = _walking()
     env = nominal_env(config.sensor_noise_scale)
+    constants = dict(deadzone=config.deadzone, zeta=config.zeta, window=config.velocity_window)
     with jax.ensure_compile_time_eval():
-        ctrl = controller.make_controller_params(env, config.speed_mps, step_time_s=config.step_time_s)
+        ctrl = controller.make_controller_params(env, config.speed_mps, step_time_s=config.step_time_s,
+                                                 **{k: v for k, v in constants.items() if v is not None})
     return env, ctrl
 
 

@@ -2,7 +2,8 @@
 
     coman-sweep tune [--plant 3lp] [--steps 60] [--lr 0.05] [--optimizer adam] [--batch 64] [--seed 0]
                      [--n-steps 7] [--impulse-max 12] [--noise-min 0.0005] [--noise-max 0.0015] [--bias 0.002]
-                     [--tune-weights] [--holdout | --no-holdout] [--out tune-out] [--no-progress] [--x64]
+                     [--tune-weights] [--holdout | --no-holdout] [--holdout-mjx] [--out tune-out] [--no-progress]
+                     [--x64]
 
 Starts from the seed's constants (zeta 0.1, a 30-sample velocity window and
 the Figure 9 thresholds of the training sensors, :func:`sweeps.objective.seed_constants`)
@@ -13,7 +14,9 @@ to ``--out`` (each file atomically): ``tuned.json`` (constants before and
 after, training and held-out loss before and after, the history, the
 command) and ``loss.png``; with ``--holdout`` (default) it also runs held-out
 push grids (:mod:`sweeps.holdout`) with the seed and the tuned constants and
-adds ``holdout.json`` and ``holdout.png``.
+adds ``holdout.json`` and ``holdout.png``. On ``--plant mjx`` (or with
+``--holdout-mjx``) the held-out pushes are MJX sweeps of the seed and the tuned
+constants (:mod:`sweeps.holdout_mjx`): ``holdout_mjx.json``, ``holdout_mjx.png``.
 """
 
 from __future__ import annotations
@@ -291,7 +294,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bias", type=float, default=d.bias_std_m, help="std of the per-rollout sensor bias, m")
     p.add_argument("--tune-weights", action="store_true", help="also tune the DLQR weight scales")
     p.add_argument("--holdout", action=argparse.BooleanOptionalAction, default=True,
-                   help="validate on held-out push grids (default on)")
+                   help="validate on held-out push grids (default on): 3LP grids for --plant 3lp, "
+                        "MJX sweeps for --plant mjx")
+    p.add_argument("--holdout-mjx", action="store_true",
+                   help="--plant 3lp: also validate the tuned constants on held-out MJX sweeps")
     p.add_argument("--out", type=Path, default=Path("tune-out"), help="output folder (default tune-out)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--x64", action="store_true", help="64-bit floats")
@@ -312,7 +318,7 @@ def run(args, parser) -> int:
         from jaxlp.presets import get_params
 
         get_params(config.robot)
-        if config.plant == "mjx":
+        if config.plant == "mjx" or args.holdout_mjx:
             from sweeps.tune_mjx import check_available
 
             check_available()
@@ -337,7 +343,12 @@ def run(args, parser) -> int:
                   f"on average; median late landing error {t['late_error_median']:.3f}")
         print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.npz, holdout.png")
     else:
-        if args.holdout:
-            print("  held-out push grids run on --plant 3lp only; tuned.json holds the MJX held-out pushes' loss")
         print(f"wrote {args.out}/tuned.json, loss.png")
+    if (args.holdout and config.plant == "mjx") or args.holdout_mjx:
+        from sweeps import holdout_mjx
+
+        table = holdout_mjx.run_mjx_holdout(record, args.out, progress=not args.no_progress)["table"]
+        print(holdout_mjx.format_table(table))
+        print(f"wrote {args.out}/holdout_mjx.json, holdout_mjx.npz, holdout_mjx.png and the sweeps in "
+              f"{args.out}/holdout-mjx/")
     return 0

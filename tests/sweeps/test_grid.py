@@ -37,6 +37,9 @@ def test_bad_grids_name_the_problem(parse, text, match):
     (dict(push_step=10), "push_step"), (dict(randomize_mass_pct=60.0), "below 50"),
     (dict(model="3lp", randomize_spring_pct=5.0), "mjx only"), (dict(model="mjx", noise_std_m=1e-3), "3lp only"),
     (dict(chunk=0), "chunk"), (dict(noise_std_m=math.nan), "noise_std_m"),
+    (dict(model="3lp", zeta=0.2), "zeta .*mjx only"), (dict(model="mjx", deadzone=(0.01, 0.02)), "4 finite positive"),
+    (dict(model="mjx", deadzone=(0.01, 0.01, -0.1, 0.1)), "4 finite positive"), (dict(model="mjx", zeta=1.5), "zeta"),
+    (dict(model="mjx", velocity_window=0), "velocity_window"),
 ])
 def test_validate_names_the_bad_value(fields, match):
     with pytest.raises(GridError, match=match):
@@ -53,3 +56,12 @@ def test_grid_is_phase_major_and_the_hash_is_the_identity():
     same = SweepConfig(phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0), direction="left")
     assert cfg.hash() == same.hash() and len(cfg.hash()) == 16
     assert cfg.hash() != SweepConfig(phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0), direction="left", seed=1).hash()
+
+
+def test_controller_constants_enter_the_hash_only_when_set():
+    base = SweepConfig(model="mjx")
+    assert "deadzone" not in base.to_dict() and "zeta" not in base.to_dict()  # hashes of older sweeps stay
+    tuned = SweepConfig(model="mjx", deadzone=(0.004, 0.004, 0.04, 0.04), zeta=0.2, velocity_window=14).validate()
+    assert tuned.to_dict()["deadzone"] == [0.004, 0.004, 0.04, 0.04]
+    assert len({base.hash(), tuned.hash(), SweepConfig(model="mjx", zeta=0.3).hash()}) == 3
+    assert tuned.compiled_part().zeta == 0.2  # the constants are compiled into the rollouts
