@@ -12,18 +12,23 @@ Peer baseline: what a researcher writes without this tool, one rollout at a
 time: ``mujoco.mj_step`` on the same scene (``mjx_coman.model_path()``, 1 ms
 timestep, 2 physics steps per 2 ms control tick) with the same actuator model
 in NumPy (eq. 25 position loop on the motor shaft with the same gains and the
-20 ms delay line, series springs and motors of eq. 19-20), fed the position
-targets the MJX open-loop controller produces for the same walk, plus a
-NumPy time-projection footstep feedback each tick: pelvis and swing foot
-relative to the stance foot, IIR filter (eq. 26), 30-sample velocity average,
-error against the nominal 3LP gait, smooth dead-zone (eq. 27), table-B
-footstep adjustment truncated at 0.35 h1, added to the swing hip pitch as an
-attack angle. It skips the per-tick inverse kinematics and the sensor model
-of the MJX controller, so it does less work per step than the MJX side.
+20 ms delay line, series springs and motors of eq. 19-20), the sensors read
+from ``MjData`` (backlash, 12-bit encoders, IMU noise, foot forces from
+``mj_contactForce``) and the same walking controller: the source of
+``mjx_coman.walking.controller.step`` (estimation, eq. 26-27, table B,
+adaptive lift, IK, eq. 21 and 24) executed by NumPy through
+``bench/numpy_twin.py`` (tests/bench check it gives the JAX controller's
+targets). That controller costs about 2,600 Python-level NumPy calls a tick
+(about 110 of them ``np.stack`` calls, most building 3x3 rotations);
+a hand-tuned port (scalar ``math`` for the rotations, say) would be faster,
+so the run also times the physics alone (the same walk replaying the recorded
+targets through the delay line, SEA model and ``mj_step``): the bound no
+NumPy controller can beat, ``native_physics_only_steps_per_s``.
 
 One environment step = one 2 ms control tick of one robot (2 physics steps).
 Prints ``{"mjx_steps_per_s": {batch: steps/s}, "native_steps_per_s": ...,
-"ratio": best MJX / native, "backend": ..., "device": ...}`` (``--json``).
+"ratio": best MJX / native, "native_physics_only_steps_per_s": ..., "ratio_to_physics_only": ...,
+"backend": ..., "device": ...}`` (``--json``).
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+import numpy_twin  # noqa: E402  (bench/: run as python bench/sweep_throughput.py)
 from sweeps import model_mjx
 from sweeps.grid import SweepConfig
 from sweeps.models import RolloutInputs
@@ -79,38 +85,83 @@ def mjx_throughput(batch: int, seconds: float, repeats: int) -> dict:
                 fell=int(np.sum(np.asarray(out.fell))))
 
 
+class NativeSensors:
+    """COMAN's sensors read from ``mujoco.MjData`` with the project's sensor functions run by NumPy."""
+
+    def __init__(self, m, sensor_params: dict, seed: int = 0):
+        from mjx_coman import sensors
+
+        self.m, self.p = m, sensor_params
+        self.rng = np.random.default_rng(seed)
+        self.backlash, self.quantize = numpy_twin.twin(sensors.backlash), numpy_twin.twin(sensors.quantize)
+        self.quat_mul, self.quat_to_rpy = numpy_twin.twin(sensors.quat_mul), numpy_twin.twin(sensors.quat_to_rpy)
+        self.small_rotation = numpy_twin.twin(sensors._small_rotation_quat)
+        self.Readings = sensors.Readings
+        feet = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ("RFoot", "LFoot")]
+        self.foot_of_body = {b: i for i, b in enumerate(feet)}  # (right, left), as Readings
+        self.force = np.zeros(6)
+
+    def reset(self, q):
+        self.out = np.array(q, float)
+
+    def read(self, d, motor_angle, motor_vel, pelvis_body):
+        p = self.p
+        self.out = self.backlash(self.out, d.qpos[7:], p["backlash_rad"])
+        link = self.quantize(self.out + p["encoder_offset_rad"], p["encoder_resolution_rad"])
+        noise = p["imu_orientation_noise_rad"] * self.rng.standard_normal(3)
+        quat = self.quat_mul(d.xquat[pelvis_body], self.small_rotation(noise))
+        quat = quat / np.linalg.norm(quat)
+        normal = np.zeros(2)
+        for i in range(d.ncon):
+            c = d.contact[i]
+            foot = self.foot_of_body.get(self.m.geom_bodyid[c.geom2], self.foot_of_body.get(self.m.geom_bodyid[c.geom1]))
+            if foot is None:
+                continue
+            mujoco.mj_contactForce(self.m, d, i, self.force)
+            normal[foot] += abs(self.force[:3] @ c.frame.reshape(3, 3)[:, 2])  # world z of the contact force
+        gyro = d.qvel[3:6] + p["gyro_noise_rad_per_s"] * self.rng.standard_normal(3)
+        zeros = np.zeros(6)
+        return self.Readings(
+            link_angle_rad=link, motor_angle_rad=numpy_twin.as_twin(motor_angle), motor_vel_rad_per_s=motor_vel,
+            imu_quat=quat, imu_rpy_rad=self.quat_to_rpy(quat), gyro_rad_per_s=gyro, ft_right=zeros, ft_left=zeros,
+            foot_normal_force_n=numpy_twin.as_twin(normal), contact=normal > p["contact_threshold_n"])
+
+
 class NativeCOMAN:
-    """COMAN in native MuJoCo with the SEA actuator model and a NumPy time-projection footstep feedback."""
+    """COMAN in native MuJoCo, the SEA actuator model in NumPy, the walking controller run by NumPy.
 
-    def __init__(self):
+    The controller is :func:`mjx_coman.walking.controller.step` itself, executed
+    by NumPy through :mod:`numpy_twin` (same source, same parameters as the
+    sweep's ``mjx`` model); the sensors are read from ``mujoco.MjData`` by the
+    project's sensor functions (backlash, 12-bit quantisation, IMU noise, RPY),
+    also twinned, and the foot normal forces from ``mujoco.mj_contactForce``.
+    F/T wrenches and gyro rates, which the controller does not read, are not
+    computed.
+    """
+
+    def __init__(self, seconds: float, seed: int = 0):
         from mjx_coman import model_path
-        from mjx_coman.actuators import MAX_DELAY_TICKS, SEA_MASK, make_actuator_params
-        from mjx_coman.env import make_env_params, standing_posture
+        from mjx_coman.actuators import MAX_DELAY_TICKS, SEA_MASK
+        from mjx_coman.env import standing_posture
         from mjx_coman.sensors import model_ids
-        from mjx_coman.walking.controller import LEFT_HIP_PITCH, RIGHT_HIP_PITCH, make_controller_params
+        from mjx_coman.walking import controller
 
+        env, ctrl = model_mjx.nominal(sweep_config(seconds, 1).compiled_part())
         self.m = mujoco.MjModel.from_xml_path(str(model_path()))
-        self.m.opt.timestep = 0.001
+        self.m.opt.timestep = float(env.model.opt.timestep)
         self.d = mujoco.MjData(self.m)
-        a = make_actuator_params(control_period_s=0.002)
-        self.a = {k: np.asarray(v, float) for k, v in a.__dict__.items()}
+        self.a = {k: np.asarray(v, float) for k, v in env.actuator.__dict__.items()}
+        self.sen = {k: np.asarray(v, float) for k, v in env.sensor.__dict__.items()}
         self.sea = np.asarray(SEA_MASK)
-        self.delay = int(a.delay_ticks)
+        self.delay = int(env.actuator.delay_ticks)
         self.buf_len = MAX_DELAY_TICKS + 1
-        ctrl = make_controller_params(make_env_params())
-        self.table = np.asarray(ctrl.footstep_table, float)  # (n, 4)
-        self.nominal = np.asarray(ctrl.nominal_base, float)  # (n + 1, 2, 6), d = +1
-        self.deadzone = np.asarray(ctrl.deadzone, float)
-        self.zeta = float(ctrl.zeta)
-        self.h1 = float(ctrl.h1_m)
-        self.trunc = float(ctrl.truncation_m)
-        self.n = int(ctrl.ticks_per_step)
-        self.hips = (LEFT_HIP_PITCH, RIGHT_HIP_PITCH)
-        ids = model_ids()
-        self.pelvis = ids["pelvis_body"]
-        self.feet = (mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, "LFoot"),
-                     mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, "RFoot"))
-        self.q0, self.root = standing_posture()
+        self.n_sub = int(env.n_substeps)
+        self.knee_rad = float(ctrl.knee_rad)
+        self.cp = numpy_twin.to_twin_tree(ctrl)
+        self.ctl_init, self.ctl_step = numpy_twin.twin(controller.init), numpy_twin.twin(controller.step)
+        self.sensors = NativeSensors(self.m, self.sen, seed)
+        self.pelvis = model_ids()["pelvis_body"]
+        self.q0, self.root = standing_posture(self.knee_rad)
 
     def reset(self):
         mujoco.mj_resetData(self.m, self.d)
@@ -121,8 +172,9 @@ class NativeCOMAN:
         self.dth = np.zeros_like(self.th)
         self.buf = np.tile(self.q0, (self.buf_len, 1))
         self.k = 0
-        self.filt = None
-        self.hist = []
+        self.sensors.reset(self.d.qpos[7:])
+        self.cs = self.ctl_init(self.cp)
+        self.targets = []
 
     def _substep(self, target):
         a = self.a
@@ -140,62 +192,45 @@ class NativeCOMAN:
         self.th, self.dth = np.where(self.sea, th, q), np.where(self.sea, dth, dq)
         mujoco.mj_step(self.m, self.d)
 
-    def _footstep_feedback(self, tick: int, d: float) -> float:
-        """Time-projection footstep adjustment from the sagittal error (NumPy, ideal position sensing)."""
-        left, right = self.d.xpos[self.feet[0]], self.d.xpos[self.feet[1]]
-        stance, swing = (right, left) if d > 0 else (left, right)
-        raw = np.array([swing[0] - stance[0], self.d.xpos[self.pelvis][0] - stance[0]])
-        if self.filt is None or tick == 0:
-            self.filt, self.hist = raw.copy(), []
-        self.filt = self.zeta * raw + (1 - self.zeta) * self.filt  # eq. 26
-        self.hist = (self.hist + [self.filt.copy()])[-31:]
-        vel = (self.hist[-1] - self.hist[0]) / (0.002 * max(1, len(self.hist) - 1))  # 30-sample average
-        nom = self.nominal[tick, 0]
-        e = np.array([self.filt[0] - (nom[0] - nom[2]), self.filt[1] - (nom[1] - nom[2]),
-                      vel[0] - (nom[3] - nom[5]), vel[1] - (nom[4] - nom[5])])
-        a = self.deadzone
-        e = e - np.arctan(np.pi * e / (2.0 * a)) * 2.0 * a / np.pi  # eq. 27
-        return float(np.clip(self.table[min(tick, self.n - 1)] @ e, -self.trunc, self.trunc))
-
-    def step(self, target: np.ndarray) -> None:
-        """One 2 ms control tick: feedback, delay line, two physics steps."""
-        k = self.k
-        phase_tick, step = k % self.n, k // self.n
-        d = 1.0 if step % 2 == 0 else -1.0
-        target = np.array(target, float)
-        if step >= 1:  # walking phases (the first is the start-up phase)
-            target[self.hips[0] if d > 0 else self.hips[1]] -= self._footstep_feedback(phase_tick, d) / self.h1
-        self.buf[k % self.buf_len] = target
-        delayed = self.buf[(k - self.delay) % self.buf_len]
-        for _ in range(2):
+    def actuate(self, target: np.ndarray) -> None:
+        """Delay line and the physics steps of one 2 ms tick."""
+        self.buf[self.k % self.buf_len] = target
+        delayed = self.buf[(self.k - self.delay) % self.buf_len]
+        for _ in range(self.n_sub):
             self._substep(delayed)
         self.k += 1
 
-
-def open_loop_targets(seconds: float) -> np.ndarray:
-    """The MJX open-loop controller's motor targets of one unpushed walk, (ticks, NU)."""
-    from mjx_coman.walking.rollout import WalkSpec, no_push, walk
-
-    env, ctrl = model_mjx.nominal(sweep_config(seconds, 1).compiled_part())
-    spec = WalkSpec(controller="open-loop", seconds=seconds, step_time_s=STEP_TIME_S, record_every=1)
-    r = jax.jit(lambda k: walk(env, ctrl, no_push(), spec, k))(jax.random.PRNGKey(0))
-    return np.asarray(r.trace.target_rad, float)
+    def step(self) -> np.ndarray:
+        """One 2 ms control tick: sensors, the walking controller, delay line, physics; returns the target."""
+        readings = self.sensors.read(self.d, self.th, self.dth, self.pelvis)
+        self.cs, cmd = self.ctl_step(self.cp, self.cs, readings, "time-projection")
+        target = np.asarray(cmd.target, float)
+        self.actuate(target)
+        return target
 
 
 def native_throughput(seconds: float, repeats: int) -> dict:
-    """Env steps/s of the NumPy + native MuJoCo loop, one rollout at a time."""
-    targets = open_loop_targets(seconds)
-    sim = NativeCOMAN()
-    best, fell = float("inf"), False
+    """Env steps/s of the native MuJoCo + NumPy controller loop, one rollout at a time.
+
+    Also times the physics alone: the same walk replaying the recorded targets
+    (delay line, SEA model, ``mj_step``), the part no controller can shave off.
+    """
+    n = int(round(seconds / 0.002))
+    sim = NativeCOMAN(seconds)
+    best = replay = float("inf")
     for _ in range(repeats):
         sim.reset()
         t0 = time.perf_counter()
-        for target in targets:
-            sim.step(target)
+        targets = [sim.step() for _ in range(n)]
         best = min(best, time.perf_counter() - t0)
         fell = bool(sim.d.xpos[sim.pelvis][2] < 0.3)
-    return dict(ticks=len(targets), seconds=best, env_steps_per_s=len(targets) / best, fell=fell,
-                physics_steps_per_s=2 * len(targets) / best)
+        sim.reset()
+        t0 = time.perf_counter()
+        for target in targets:
+            sim.actuate(target)
+        replay = min(replay, time.perf_counter() - t0)
+    return dict(ticks=n, seconds=best, env_steps_per_s=n / best, fell=fell,
+                physics_steps_per_s=sim.n_sub * n / best, physics_only_env_steps_per_s=n / replay)
 
 
 def main(argv=None) -> int:
@@ -216,6 +251,8 @@ def main(argv=None) -> int:
         mjx_steps_per_s={str(r["batch"]): round(r["env_steps_per_s"], 1) for r in mjx_runs},
         native_steps_per_s=round(native["env_steps_per_s"], 1),
         ratio=round(best / native["env_steps_per_s"], 3),
+        native_physics_only_steps_per_s=round(native["physics_only_env_steps_per_s"], 1),
+        ratio_to_physics_only=round(best / native["physics_only_env_steps_per_s"], 3),
         backend=f"MJX (JAX {jax.__version__}, {jax.default_backend()}); no Warp",
         device=str(jax.devices()[0]) + (f" x{jax.device_count()}" if jax.device_count() > 1 else ""),
         env_step="one 2 ms control tick of one robot (2 physics steps of 1 ms)",
@@ -229,6 +266,8 @@ def main(argv=None) -> int:
             print(f"MJX batch {r['batch']:5d}: {r['env_steps_per_s']:12.0f} env steps/s "
                   f"(first call {r['first_call_s']:.1f} s)")
         print(f"native MuJoCo + NumPy: {native['env_steps_per_s']:12.0f} env steps/s; ratio {out['ratio']:.2f}")
+        print(f"native physics alone:  {native['physics_only_env_steps_per_s']:12.0f} env steps/s; "
+              f"ratio {out['ratio_to_physics_only']:.2f}")
     return 0
 
 
