@@ -16,5 +16,6 @@ def test_notebook_05_runs_and_shows_tuning_and_regions():
     text = "".join(o.get("text", "") for o in outputs)
     assert "training loss" in text and "seed  :" in text and "tuned :" in text
     assert "same cell at every timing: True" in text
+    assert "MJX seed  :" in text and "MJX tuned :" in text and "MJX tuning: sway" in text
     images = sum(1 for o in outputs if "image/png" in o.get("data", {}))
-    assert images == 3  # the loss curve, the held-out maps, the regions
+    assert images == 4  # the loss curve, the held-out 3LP and MJX maps, the regions
