@@ -10,7 +10,7 @@ whose arrays also understand JAX's out-of-place updates ``x.at[i].set(v)`` and
 ``.add(v)``, and every function or module of the project it refers to is
 rebuilt the same way (recursively). The result runs the very same source,
 every operation executed eagerly by NumPy on small arrays, which is how a
-NumPy controller of this pipeline spends its time. ``tests/bench`` checks
+NumPy controller of this pipeline spends its time. ``pytest -m slow tests/bench`` checks
 that the twin's motor targets equal the jitted JAX controller's.
 
 Only pure functions written against ``jnp`` twin; classes (NamedTuples,

@@ -17,8 +17,8 @@ from ``MjData`` (backlash, 12-bit encoders, IMU noise, foot forces from
 ``mj_contactForce``) and the same walking controller: the source of
 ``mjx_coman.walking.controller.step`` (estimation, eq. 26-27, table B,
 adaptive lift, IK, eq. 21 and 24) executed by NumPy through
-``bench/numpy_twin.py`` (tests/bench check it gives the JAX controller's
-targets). That controller costs about 2,600 Python-level NumPy calls a tick
+``bench/numpy_twin.py`` (``pytest -m slow tests/bench`` checks it gives the
+JAX controller's targets). That controller costs about 2,600 Python-level NumPy calls a tick
 (about 110 of them ``np.stack`` calls, most building 3x3 rotations);
 a hand-tuned port (scalar ``math`` for the rotations, say) would be faster,
 so the run also times the physics alone (the same walk replaying the recorded

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).parents[2] / "bench"))
 import numpy_twin  # noqa: E402
@@ -31,6 +32,7 @@ def test_twinned_kinematics_match_jax():
             np.testing.assert_allclose(g, w, atol=2e-6)
 
 
+@pytest.mark.slow
 def test_twin_controller_gives_the_jax_controllers_targets(controller="time-projection"):
     """260 ticks (the start-up phase and the start of walking) of readings with swaying encoders and pitch.
 
