@@ -99,6 +99,7 @@ def _ours(obj) -> bool:
 
 
 def _twin_globals(module_globals: dict) -> dict:
+    """A module's globals with ``jnp``, JAX array constants and the project's functions and modules twinned."""
     import jax
 
     g = dict(module_globals)
@@ -127,20 +128,12 @@ def twin(fn: types.FunctionType) -> types.FunctionType:
 
 
 def twin_module(module: types.ModuleType) -> types.SimpleNamespace:
-    """A namespace with the module's functions twinned (other attributes shared)."""
+    """A namespace of the module's attributes, twinned as :func:`twin` twins a function's globals."""
     key = id(module)
     if key not in _TWINS:
         ns = types.SimpleNamespace()
-        _TWINS[key] = ns
-        for name, obj in vars(module).items():
-            if isinstance(obj, types.FunctionType) and obj.__module__ == module.__name__:
-                setattr(ns, name, twin(obj))
-            elif name == "jnp":
-                setattr(ns, name, JNP)
-            elif isinstance(obj, np.ndarray) or type(obj).__module__.startswith("jax"):
-                setattr(ns, name, as_twin(np.asarray(obj)) if hasattr(obj, "__array__") else obj)
-            else:
-                setattr(ns, name, obj)
+        _TWINS[key] = ns  # before the attributes: modules that import each other resolve to the twin
+        vars(ns).update(_twin_globals(vars(module)))
     return _TWINS[key]
 
 

@@ -184,9 +184,9 @@ class SweepConfig:
                 if self.model != model and getattr(self, name) != 0:
                     raise GridError(f"{name} applies to --model {model} only, got {getattr(self, name)} "
                                     f"with --model {self.model}")
-        constants = {name: getattr(self, name) for name in CONSTANT_FIELDS if getattr(self, name) is not None}
-        if constants and self.model != "mjx":
-            raise GridError(f"{next(iter(constants))} (controller constants) applies to --model mjx only")
+        given = [name for name in CONSTANT_FIELDS if getattr(self, name) is not None]
+        if given and self.model != "mjx":
+            raise GridError(f"{given[0]} (controller constants) applies to --model mjx only")
         if self.deadzone is not None and (len(self.deadzone) != 4 or not all(
                 math.isfinite(v) and v > 0 for v in self.deadzone)):
             raise GridError(f"deadzone must be 4 finite positive thresholds, got {list(self.deadzone)}")

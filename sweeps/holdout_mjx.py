@@ -20,7 +20,6 @@ a whole-sample velocity window (the tuned window is rounded).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 from sweeps.grid import SweepConfig
@@ -36,23 +35,19 @@ def sweep_fields(constants: dict) -> dict:
 
     Args:
         constants: as ``constants_before`` / ``constants_after`` of ``tuned.json``
-            (:meth:`sweeps.objective.Constants.as_dict` names).
+            (:meth:`sweeps.objective.Constants.as_dict` names; the DLQR weight scales may be absent).
 
     Raises:
-        ValueError: a missing or non-finite constant, naming it.
+        ValueError: a missing or bad constant, naming it (:func:`sweeps.objective.make_constants`).
     """
-    from sweeps.objective import CONSTANT_NAMES
+    from sweeps.objective import CONSTANT_NAMES, make_constants
 
-    names = (*CONSTANT_NAMES[:4], "zeta", "window_samples")
-    missing = [n for n in names if n not in constants]
-    if missing:
-        raise ValueError(f"constants lack {missing[0]!r}")
-    vals = {n: float(constants[n]) for n in names}
-    bad = [n for n, v in vals.items() if not math.isfinite(v)]
-    if bad:
-        raise ValueError(f"constant {bad[0]}={constants[bad[0]]!r} is not finite")
-    return dict(deadzone=tuple(vals[n] for n in CONSTANT_NAMES[:4]), zeta=vals["zeta"],
-                velocity_window=max(1, int(round(vals["window_samples"]))))
+    try:
+        c = make_constants([constants[n] for n in CONSTANT_NAMES[:4]], constants["zeta"], constants["window_samples"])
+    except KeyError as e:
+        raise ValueError(f"constants lack {e.args[0]!r}") from None
+    return dict(deadzone=tuple(float(v) for v in c.deadzone), zeta=float(c.zeta),
+                velocity_window=int(round(float(c.window_samples))))
 
 
 def load_constants(path: Path, which: str = "after") -> dict:
@@ -123,10 +118,9 @@ def run_mjx_holdout(record: dict, out: Path, *, progress: bool = True, resume: b
             runs[name].append(run)
     table = holdout.compare(runs)
     for name, t in table.items():
-        t["constants"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in sets[name].items()}
+        t["constants"] = sets[name]
         t["wall_s"] = float(sum(r.timing["wall_s"] for r in runs[name]))
-    grid_json = {k: (list(v) if isinstance(v, tuple) else v) for k, v in {**DEFAULT_GRID, **grid}.items()}
-    save_text_atomic(out / "holdout_mjx.json", json.dumps(dict(table, grid=grid_json), indent=1))
+    save_text_atomic(out / "holdout_mjx.json", json.dumps(dict(table, grid={**DEFAULT_GRID, **grid}), indent=1))
     holdout.save_runs(out / "holdout_mjx.npz", runs)
     holdout.plot_holdout(out / "holdout_mjx.png", runs)
     return dict(table=table, runs=runs)
