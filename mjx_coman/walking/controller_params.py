@@ -27,7 +27,8 @@ from mjx_coman.walking.open_loop import FIXED_LIFT_M, ROLL_AMP_RAD, crouched_pel
 DEFAULT_STEP_WIDTH_M = 0.1452  # the crouched stance's feet distance (hips 2 x 0.0726 m apart)
 DEFAULT_DEADZONE = (0.004, 0.004, 0.04, 0.04)  # [e1 m, e2 m, e1_dot m/s, e2_dot m/s], Figure-9-like
 DEFAULT_KNEE_DEFLECTION_RAD = 0.012  # mu of eq. 21: knee link - motor at full support, open-loop in-place walk
-DEFAULT_ANKLE_COMPLIANCE = 0.65  # stance ankle keeps 35 % of its ~290 N m/rad (see motor_targets_block)
+DEFAULT_ANKLE_COMPLIANCE = 0.675  # stance ankle keeps 32.5 % of its ~290 N m/rad (see motor_targets_block)
+DEFAULT_HIP_ATTACK = 0.75  # share of the footstep adjustment applied as the seed's attack angle on the swing hip
 DEFAULT_PELVIS_OFFSET_M = -0.03  # nominal pelvis over the ankle axis, the pivot of the compliant ankle
 DEFAULT_LEAN_S = 0.03  # 3 mm of pelvis lead per 0.1 m/s: walks within 20 % of 0.1 and 0.2 m/s (0 lean: -19 %, -47 %)
 MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here (open_loop docstring)
@@ -41,7 +42,7 @@ MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here 
         "zeta", "deadzone", "footstep_gain", "truncation_m", "mu_left_rad", "mu_right_rad", "weight_n",
         "hip_switch", "posture_q_rad", "ramp_start_steps", "ramp_steps", "start_sway_m",
         "stance_feedback", "ankle_compliance", "pelvis_offset_m", "stance_deadzone_m",
-        "lean_s", "adjustment_tau_s",
+        "lean_s", "adjustment_tau_s", "hip_attack",
     ],
     meta_fields=["ticks_per_step", "dt_s", "window", "knee_rad"],
 )
@@ -87,6 +88,12 @@ class ControllerParams:
             the nominal pelvis ahead by ``lean_s v`` while walking at ``v``.
         adjustment_tau_s: time constant of a first-order filter on the applied
             footstep adjustment, s (0: applied at once, as the seed does).
+        hip_attack: share ``a`` of the footstep adjustment ``Delta`` applied as
+            the seed's attack angle on the swing hip: ``a Delta / h1`` is
+            added to the swing hip pitch (forward) and taken off the swing ankle
+            pitch (foot orientation kept), the knee left to the lift; the rest,
+            ``(1 - a) Delta``, moves the IK's swing-foot target (see
+            :func:`mjx_coman.walking.controller.joint_targets_block`).
         ankle_compliance: share ``c`` of the measured link angle in the stance
             ankle pitch target, ``(1 - c) q_ik + c q_link``: it scales the stance
             ankle's stiffness against posture errors by ``1 - c`` (see
@@ -132,6 +139,7 @@ class ControllerParams:
     stance_deadzone_m: jax.Array
     lean_s: jax.Array
     adjustment_tau_s: jax.Array
+    hip_attack: jax.Array
     ticks_per_step: int
     dt_s: float
     window: int
@@ -179,6 +187,7 @@ def make_controller_params(
     stance_deadzone_m: float = 0.02,
     lean_s: float = DEFAULT_LEAN_S,
     adjustment_tau_s: float = 0.0,
+    hip_attack: float = DEFAULT_HIP_ATTACK,
     weights: control.LQRWeights | None = None,
 ) -> ControllerParams:
     """Validated controller parameters for a commanded speed (host function, not jittable).
@@ -201,7 +210,8 @@ def make_controller_params(
         knee_rad: knee flexion of the crouched posture (the env's reset posture).
         ramp_start_steps, ramp_steps: in-place phases, then phases of speed ramp (>= 0).
         start_sway_m: amplitude of the start-up sway (>= 0), m.
-        stance_feedback, ankle_compliance, pelvis_offset_m, stance_deadzone_m, lean_s, adjustment_tau_s: see
+        stance_feedback, ankle_compliance, pelvis_offset_m, stance_deadzone_m, lean_s, adjustment_tau_s,
+            hip_attack: see
             :class:`ControllerParams`.
         max_adjustment_m: truncation of the footstep adjustment, m (default 0.35 ``h1``).
         weights: DLQR weights (``jaxlp.control.default_weights`` if ``None``).
@@ -249,7 +259,7 @@ def make_controller_params(
         _check(name, val, 0.0)
     for name, val in (("adaptive_lift_gain", adaptive_lift_gain), ("foot_pitch_gain", foot_pitch_gain),
                       ("hip_switch", hip_switch), ("stance_feedback", stance_feedback),
-                      ("ankle_compliance", ankle_compliance)):
+                      ("ankle_compliance", ankle_compliance), ("hip_attack", hip_attack)):
         _check(name, val, 0.0, 1.0)
     _check("knee_rad", knee_rad, 0.05, 1.5)
 
@@ -281,7 +291,7 @@ def make_controller_params(
         posture_q_rad=a(posture), ramp_start_steps=a(ramp_start_steps), ramp_steps=a(ramp_steps),
         start_sway_m=a(start_sway_m), stance_feedback=a(stance_feedback), ankle_compliance=a(ankle_compliance),
         pelvis_offset_m=a(pelvis_offset_m), stance_deadzone_m=a(stance_deadzone_m),
-        lean_s=a(lean_s), adjustment_tau_s=a(adjustment_tau_s),
+        lean_s=a(lean_s), adjustment_tau_s=a(adjustment_tau_s), hip_attack=a(hip_attack),
         ticks_per_step=n, dt_s=dt, window=int(window), knee_rad=float(knee_rad),
     )
 

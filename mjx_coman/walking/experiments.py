@@ -51,6 +51,7 @@ import numpy as np
 STEP_TIME_S = 0.4
 NO_DEADZONE = 1e-7  # dead-zone threshold that leaves the error untouched (to 1e-7)
 PUSH_DURATION_S = 0.1
+PUSH_TABLE_IMPULSES_NS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0)  # default grid, 1 N s apart
 
 
 @functools.lru_cache(maxsize=None)
@@ -119,7 +120,7 @@ def largest_recovered(impulses, recovered) -> np.ndarray:
     return grid[ok.sum(axis=-1)]
 
 
-def push_table(impulses=(1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0), n_phases: int = 8, push_step: int = 4,
+def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
                steps_after: int = 8, directions=("forward", "backward"), controllers=("closed-loop", "open-loop"),
                seed: int = 0, chunk: int = 64) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place)."""
@@ -331,7 +332,7 @@ def main(argv=None) -> int:
     ap = _Parser(prog="python -m mjx_coman.walking.experiments", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="experiment", required=True, parser_class=_Parser)
     pt = sub.add_parser("push-table")
-    pt.add_argument("--impulses", type=_floats, default=[1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0], help="N s")
+    pt.add_argument("--impulses", type=_floats, default=list(PUSH_TABLE_IMPULSES_NS), help="N s")
     pt.add_argument("--phases", type=int, default=8)
     pt.add_argument("--push-step", type=int, default=4)
     pt.add_argument("--steps-after", type=int, default=8)

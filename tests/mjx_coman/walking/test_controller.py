@@ -39,6 +39,7 @@ def params_fast():
     (dict(footstep_gain=-1.0), "footstep_gain"),
     (dict(hip_switch=2.0), "hip_switch"),
     (dict(ankle_compliance=1.5), "ankle_compliance"),
+    (dict(hip_attack=-0.1), "hip_attack"),
     (dict(step_width_m=-0.1), "step_width_m"),
 ])
 def test_make_controller_params_rejects_bad_values(kwargs, name):
@@ -135,6 +136,46 @@ def test_leg_targets_mirror_between_phases(params_fast, tick, adjustment):
         base = ctl.joint_targets_block(params_fast, ctl.nominal_at(params_fast, tick, 10, 1.0), t, 1.0,
                                        jnp.asarray(0.0), jnp.asarray(0.004), jnp.asarray(-0.05))
         assert q_left[JOINT_INDEX["LHipSag"]] < float(base[JOINT_INDEX["LHipSag"]]) - 0.05
+
+
+@pytest.mark.parametrize("hip_attack", [0.0, 0.75, 1.0])
+def test_hip_attack_splits_the_adjustment_between_ik_and_hip(params, hip_attack):
+    """``a Delta / h1`` on the swing hip and ankle pitch (knee untouched), ``(1 - a) Delta`` through the IK."""
+    from mjx_coman.kinematics import leg_fk, rot_y
+    from mjx_coman.walking.open_loop import LEFT_LEG_INDEX
+
+    p = params.replace(hip_attack=jnp.asarray(hip_attack, params.h1_m.dtype))
+    tick, delta = 130, 0.05
+    q_nom = ctl.nominal_at(p, tick, 10, 1.0)  # left swing
+
+    def targets(adj):
+        return np.asarray(ctl.joint_targets_block(p, q_nom, tick * 0.002, 1.0, jnp.asarray(adj), jnp.asarray(0.0),
+                                                  jnp.asarray(0.0)))
+
+    q0, q1 = targets(0.0), targets(delta)
+    h1 = float(p.h1_m)
+    right = [JOINT_INDEX["R" + n] for n in LEG_JOINTS]
+    np.testing.assert_allclose(q1[right], q0[right], atol=1e-6)  # the stance leg does not move
+    # what the IK does with (1 - a) Delta, then the attack angle on top
+    q_ik = np.asarray(ctl.joint_targets_block(p.replace(hip_attack=jnp.zeros_like(p.hip_attack)), q_nom,
+                                              tick * 0.002, 1.0, jnp.asarray((1 - hip_attack) * delta),
+                                              jnp.asarray(0.0), jnp.asarray(0.0)))
+    angle = hip_attack * delta / h1
+    expected = q_ik.copy()
+    expected[JOINT_INDEX["LHipSag"]] -= angle
+    expected[JOINT_INDEX["LAnkSag"]] += angle
+    np.testing.assert_allclose(q1, expected, atol=1e-6)
+    # the swing foot: moved by (1 - a) Delta through the IK, then turned by the angle about the hip, foot flat
+    pose_ik, pose = leg_fk(jnp.asarray(q_ik[LEFT_LEG_INDEX]), 1.0), leg_fk(jnp.asarray(q1[LEFT_LEG_INDEX]), 1.0)
+    turned = np.asarray(pose_ik.hip_m) + np.asarray(rot_y(jnp.asarray(-angle))) @ np.asarray(
+        pose_ik.ankle_m - pose_ik.hip_m)
+    np.testing.assert_allclose(np.asarray(pose.ankle_m), turned, atol=2e-5)
+    # the foot's pitch is kept (with the pelvis rolled the hip and ankle pitch axes differ: a small yaw remains)
+    pitch = lambda r: float(np.arctan2(r[0, 2], r[2, 2]))  # noqa: E731
+    assert abs(pitch(np.asarray(pose.foot_rot)) - pitch(np.asarray(pose_ik.foot_rot))) < 1e-3
+    pose0 = leg_fk(jnp.asarray(q0[LEFT_LEG_INDEX]), 1.0)
+    np.testing.assert_allclose(float(pose_ik.foot_point_m[0] - pose0.foot_point_m[0]), (1 - hip_attack) * delta,
+                               atol=1e-4)
 
 
 @pytest.fixture(scope="module")
