@@ -214,10 +214,9 @@ def joint_targets_block(params: ControllerParams, q_nominal, t_s, d, adjustment_
     c = c._replace(swing_m=c.swing_m + shift - pelvis, stance_m=stance)
     q = joint_targets(c, d, params.posture_q_rad, swing_pitch_rad)
     attack = params.hip_attack * adjustment_m / params.h1_m
-    left_swing = d > 0
-    hip = jnp.where(left_swing, LEFT_HIP_PITCH, RIGHT_HIP_PITCH)
-    ankle = jnp.where(left_swing, LEFT_ANKLE_PITCH, RIGHT_ANKLE_PITCH)
-    return q.at[hip].add(-attack).at[ankle].add(attack)
+    left = (jnp.asarray(d) > 0).astype(q.dtype)  # static joint indices: no traced index dtypes under x64
+    q = q.at[LEFT_HIP_PITCH].add(-left * attack).at[LEFT_ANKLE_PITCH].add(left * attack)
+    return q.at[RIGHT_HIP_PITCH].add((left - 1.0) * attack).at[RIGHT_ANKLE_PITCH].add((1.0 - left) * attack)
 
 
 def motor_targets_block(params: ControllerParams, q_des, t_s, d, force_n, readings: Readings,
