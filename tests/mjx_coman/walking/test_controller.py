@@ -148,8 +148,8 @@ def test_hip_attack_splits_the_adjustment_between_ik_and_hip(params, hip_attack)
     tick, delta = 130, 0.05
     q_nom = ctl.nominal_at(p, tick, 10, 1.0)  # left swing
 
-    def targets(adj):
-        return np.asarray(ctl.joint_targets_block(p, q_nom, tick * 0.002, 1.0, jnp.asarray(adj), jnp.asarray(0.0),
+    def targets(adj, prm=p):
+        return np.asarray(ctl.joint_targets_block(prm, q_nom, tick * 0.002, 1.0, jnp.asarray(adj), jnp.asarray(0.0),
                                                   jnp.asarray(0.0)))
 
     q0, q1 = targets(0.0), targets(delta)
@@ -157,9 +157,7 @@ def test_hip_attack_splits_the_adjustment_between_ik_and_hip(params, hip_attack)
     right = [JOINT_INDEX["R" + n] for n in LEG_JOINTS]
     np.testing.assert_allclose(q1[right], q0[right], atol=1e-6)  # the stance leg does not move
     # what the IK does with (1 - a) Delta, then the attack angle on top
-    q_ik = np.asarray(ctl.joint_targets_block(p.replace(hip_attack=jnp.zeros_like(p.hip_attack)), q_nom,
-                                              tick * 0.002, 1.0, jnp.asarray((1 - hip_attack) * delta),
-                                              jnp.asarray(0.0), jnp.asarray(0.0)))
+    q_ik = targets((1 - hip_attack) * delta, p.replace(hip_attack=jnp.zeros_like(p.hip_attack)))
     angle = hip_attack * delta / h1
     expected = q_ik.copy()
     expected[JOINT_INDEX["LHipSag"]] -= angle
