@@ -42,7 +42,9 @@ import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads; see the module docstring
 
-import jaxlp  # noqa: F401  (before jax: its XLA CPU flags must apply)
+from jaxlp.xla_flags import configure_cpu
+
+configure_cpu()  # the project's XLA CPU flags, before JAX starts (jaxlp.xla_flags)
 import jax
 import jax.numpy as jnp
 import numpy as np

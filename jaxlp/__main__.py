@@ -12,10 +12,9 @@ import argparse
 import json
 import sys
 
-import jaxlp  # noqa: F401  (sets the XLA CPU flags before JAX starts)
 import jax
 
-from jaxlp.presets import ROBOTS
+from jaxlp.presets import robot_names
 
 
 class _Parser(argparse.ArgumentParser):
@@ -38,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="python -m jaxlp", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     info = sub.add_parser("info", help="3LP report of a robot")
-    info.add_argument("--robot", choices=ROBOTS, default="coman")
+    info.add_argument("--robot", choices=robot_names(), default="coman")
     info.add_argument("--height", type=float, default=1.75, help="stature for --robot human, m")
     info.add_argument("--mass", type=float, default=70.0, help="body mass for --robot human, kg")
     info.add_argument("--step-time", type=float, default=0.4, help="step time, s")

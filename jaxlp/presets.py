@@ -3,11 +3,18 @@
 ``coman`` is the segment table of seed 000 (brief ``3LP_MODEL.md`` section 1):
 COMAN masses with human-proportioned segment lengths. ``human`` scales the
 de Leva (1996) adjustments of the Zatsiorsky-Seluyanov segment parameters
-(male) to a given height and mass. ``coman-mjcf`` is derived from the MJCF of
-the simulated robot by :mod:`mjx_coman` (imported on demand).
+(male) to a given height and mass.
+
+Other packages add presets without this one knowing them: through
+:func:`register_preset`, or through the ``jaxlp.presets`` entry-point group
+of their distribution (``coman-mjcf``, derived from the MJCF of the simulated
+robot, comes that way from ``mjx_coman.threelp_params``; see ``pyproject.toml``).
 """
 
 from __future__ import annotations
+
+from importlib import metadata
+from typing import Callable
 
 import jax.numpy as jnp
 import numpy as np
@@ -100,7 +107,25 @@ def human_table(height_m: float, mass_kg: float) -> SegmentTable:
     ).validate()
 
 
-ROBOTS = ("coman", "coman-mjcf", "human")
+BUILT_IN = ("coman", "human")
+ENTRY_POINT_GROUP = "jaxlp.presets"
+_REGISTERED: dict[str, Callable[..., ThreeLPParams]] = {}
+
+
+def register_preset(name: str, build: Callable[..., ThreeLPParams]) -> None:
+    """Add a named preset: ``build(g=...)`` returns its 3LP parameters."""
+    if name in BUILT_IN:
+        raise ValueError(f"preset {name!r} is built in")
+    _REGISTERED[name] = build
+
+
+def _entry_points() -> dict:
+    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def robot_names() -> tuple[str, ...]:
+    """Every preset name: the built-in ones, registered ones and those of installed entry points."""
+    return tuple(dict.fromkeys((*BUILT_IN, *_REGISTERED, *sorted(_entry_points()))))
 
 
 def get_params(robot: str = "coman", *, height_m: float = 1.75, mass_kg: float = 70.0,
@@ -108,8 +133,9 @@ def get_params(robot: str = "coman", *, height_m: float = 1.75, mass_kg: float =
     """3LP parameters of a named robot.
 
     Args:
-        robot: ``"coman"`` (seed 000), ``"coman-mjcf"`` (derived from the
-            simulated robot's MJCF) or ``"human"`` (``height_m``, ``mass_kg``).
+        robot: ``"coman"`` (seed 000), ``"human"`` (``height_m``, ``mass_kg``)
+            or another preset of :func:`robot_names` (e.g. ``"coman-mjcf"``,
+            derived from the simulated robot's MJCF).
 
     Raises:
         ValueError: an unknown name.
@@ -118,11 +144,12 @@ def get_params(robot: str = "coman", *, height_m: float = 1.75, mass_kg: float =
         return from_segments(coman_table(), g=g)
     if robot == "human":
         return from_segments(human_table(height_m, mass_kg), g=g)
-    if robot == "coman-mjcf":
-        from mjx_coman.threelp_params import coman_mjcf_params  # lazy: MuJoCo only when asked
-
-        return coman_mjcf_params(g=g)
-    raise ValueError(f"unknown robot {robot!r}; choose one of {', '.join(ROBOTS)}")
+    if robot not in _REGISTERED:
+        ep = _entry_points().get(robot)
+        if ep is None:
+            raise ValueError(f"unknown robot {robot!r}; choose one of {', '.join(robot_names())}")
+        _REGISTERED[robot] = ep.load()  # imported only when asked for
+    return _REGISTERED[robot](g=g)
 
 
 def leg_length_ratio(params: ThreeLPParams, height_m: float) -> float:

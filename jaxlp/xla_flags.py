@@ -5,8 +5,11 @@ its concurrency-optimised thunk scheduler deadlocked at random (all worker
 threads idle, the result never ready) on the closed-loop scans of
 :mod:`jaxlp.simulate`: 2 hangs in 5 runs of the same program. With the
 scheduler off: 0 in 14. :func:`configure_cpu` appends that flag to
-``XLA_FLAGS``; it takes effect only if it runs before JAX starts its backend,
-which is why ``import jaxlp`` calls it.
+``XLA_FLAGS``; it takes effect only if it runs before JAX starts its backend.
+This is the one place the flags are set: the packages ``jaxlp``,
+``mjx_coman`` and ``sweeps`` call it when they are imported, before any of
+their modules, so every entry point (command lines, tests, notebooks,
+benchmarks) gets them without importing anything for the side effect.
 """
 
 from __future__ import annotations

@@ -7,11 +7,15 @@ The model is generated from the CAD link table by :mod:`mjx_coman.mjcf`;
 
 from __future__ import annotations
 
-import contextlib
-import io
-from pathlib import Path
+from jaxlp.xla_flags import configure_cpu
 
-import mujoco
+configure_cpu()  # before anything below starts JAX's backend (see jaxlp.xla_flags)
+
+import contextlib  # noqa: E402
+import io  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
 
 # mujoco.mjx prints "Failed to import warp" on stdout when the optional Warp backend is absent
 # (always, on CPU); swallow that notice so that the command lines' JSON on stdout stays parseable

@@ -5,3 +5,7 @@
 registry), :mod:`sweeps.runner` (chunks, sharding, resume), :mod:`sweeps.report`
 (csv, png, json). Importing this package does not import JAX.
 """
+
+from jaxlp.xla_flags import configure_cpu
+
+configure_cpu()  # every entry point imports this package first: the XLA CPU flags before JAX starts
