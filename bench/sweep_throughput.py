@@ -2,9 +2,9 @@
 
     python bench/sweep_throughput.py [--batch 1 16 64] [--seconds 0.8] [--native-seconds 2] [--json]
 
-MJX side: the sweep's own rollout (``sweeps.model_mjx``: one pushed walk of
-COMAN under the time-projection walking controller of
-``mjx_coman.walking``), jitted and vmapped over ``--batch`` rollouts of
+MJX side: the sweep's own rollout (``sweeps.models.mjx``: one pushed walk of
+COMAN under the registered ``time-projection`` controller of
+``mjx_coman.controllers``), jitted and vmapped over ``--batch`` rollouts of
 ``--seconds`` each, as ``coman-sweep map --model mjx`` runs a chunk.
 Compilation is timed apart; the best of ``--repeats`` timed calls counts.
 
@@ -15,7 +15,7 @@ in NumPy (eq. 25 position loop on the motor shaft with the same gains and the
 20 ms delay line, series springs and motors of eq. 19-20), the sensors read
 from ``MjData`` (backlash, 12-bit encoders, IMU noise, foot forces from
 ``mj_contactForce``) and the same walking controller: the source of
-``mjx_coman.walking.controller.step`` (estimation, eq. 26-27, table B,
+``mjx_coman.controllers.time_projection.controller.step`` (estimation, eq. 26-27, table B,
 adaptive lift, IK, eq. 21 and 24) executed by NumPy through
 ``bench/numpy_twin.py`` (``pytest -m slow tests/bench`` checks it gives the
 JAX controller's targets). That controller costs about 2,600 Python-level NumPy calls a tick
@@ -33,24 +33,26 @@ Prints ``{"mjx_steps_per_s": {batch: steps/s}, "native_steps_per_s": ...,
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
+from jaxlp.xla_flags import configure_cpu
 
-import argparse
+configure_cpu()  # the project's XLA CPU flags, before JAX starts (jaxlp.xla_flags)
+
+import argparse  # noqa: E402
 import json
 import os
 import platform
 import time
 
-import jax
-import jax.numpy as jnp
-import mujoco
-import numpy as np
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
 import numpy_twin  # noqa: E402  (bench/: run as python bench/sweep_throughput.py)
-from sweeps import model_mjx
-from sweeps.grid import SweepConfig
-from sweeps.models import RolloutInputs
-from sweeps.runner import rollout_keys
+from sweeps.grid import SweepConfig  # noqa: E402
+from sweeps.models import RolloutInputs  # noqa: E402
+from sweeps.models import mjx as model_mjx  # noqa: E402
+from sweeps.runner import rollout_keys  # noqa: E402
 
 STEP_TIME_S = 0.4
 
@@ -130,7 +132,7 @@ class NativeSensors:
 class NativeCOMAN:
     """COMAN in native MuJoCo, the SEA actuator model in NumPy, the walking controller run by NumPy.
 
-    The controller is :func:`mjx_coman.walking.controller.step` itself, executed
+    The controller is :func:`mjx_coman.controllers.time_projection.controller.step` itself, executed
     by NumPy through :mod:`numpy_twin` (same source, same parameters as the
     sweep's ``mjx`` model); the sensors are read from ``mujoco.MjData`` by the
     project's sensor functions (backlash, 12-bit quantisation, IMU noise, RPY),
@@ -143,10 +145,14 @@ class NativeCOMAN:
         from mjx_coman import model_path
         from mjx_coman.actuators import MAX_DELAY_TICKS, SEA_MASK
         from mjx_coman.env import standing_posture
+        from mjx_coman.controllers import joystick
+        from mjx_coman.controllers.base import Observation
+        from mjx_coman.controllers.time_projection import controller
         from mjx_coman.sensors import model_ids
-        from mjx_coman.walking import controller
 
-        env, ctrl = model_mjx.nominal(sweep_config(seconds, 1).compiled_part())
+        cfg = sweep_config(seconds, 1).compiled_part()
+        env, (_, ctrl) = model_mjx.nominal_env(cfg.sensor_noise_scale), model_mjx.controller(cfg)
+        self.Observation, self.joystick = Observation, numpy_twin.to_twin_tree(joystick(cfg.speed_mps))
         self.m = mujoco.MjModel.from_xml_path(str(model_path()))
         self.m.opt.timestep = float(env.model.opt.timestep)
         self.d = mujoco.MjData(self.m)
@@ -203,7 +209,8 @@ class NativeCOMAN:
     def step(self) -> np.ndarray:
         """One 2 ms control tick: sensors, the walking controller, delay line, physics; returns the target."""
         readings = self.sensors.read(self.d, self.th, self.dth, self.pelvis)
-        self.cs, cmd = self.ctl_step(self.cp, self.cs, readings, "time-projection")
+        obs = self.Observation(readings, self.joystick, self.k * 0.002)
+        self.cs, cmd, _ = self.ctl_step(self.cp, self.cs, obs)
         target = np.asarray(cmd.target, float)
         self.actuate(target)
         return target

@@ -1,38 +1,40 @@
-"""Walks of the simulated COMAN under the walking controller, with a push: ``walk``.
+"""Walks of the simulated COMAN under any registered controller, judged on ground truth: ``walk``.
 
-``walk`` resets the environment to the crouched stance, then runs one
-``lax.scan`` of (controller step, env step) ticks, the push force applied to
-the upper torso while it lasts. Falls are results: a tick whose pelvis drops
-below ``fall_height_m`` or tilts beyond ``max_tilt_rad``, or whose state goes
-non-finite, freezes the whole rollout at its last good state and is recorded
-(``fell``, ``fall_time_s``; ``nan`` says it was a non-finite state). Nothing
-non-finite reaches the outputs.
+``walk`` resets the environment to the controller's crouched stance, then
+runs one ``lax.scan`` of (controller step, env step) ticks, the push force
+applied to the upper torso while it lasts. The controller sees only its
+:class:`~mjx_coman.controllers.base.Observation`; the verdict (fell,
+touchdowns, steps to recover, mean speed) comes from the simulator through
+:mod:`mjx_coman.ground_truth`, the same for every controller. A fall is a
+result: a tick whose pelvis drops or tilts too far, or whose state goes
+non-finite, freezes the rollout at its last good state and is recorded
+(``fell``, ``fall_time_s``; ``nan`` says it was non-finite).
 
-``walk`` is a pure function: jit it with ``spec`` static
-(:func:`jit_walk`) and vmap it over pushes, keys, controller parameters and
-environment parameters (``mjx_coman.env.batch_axes``); :func:`batched_walk`
-builds the jitted vmap.
+What to record is a function of the rollout state (as diffrax's
+``SaveAt(fn=...)``): ``SaveAt(fn, every)`` keeps ``fn(RolloutState)`` every
+``every`` ticks in ``WalkResult.saved``; without one nothing is kept but the
+verdict and the touchdown log, which is what a sweep needs.
+
+``walk`` is pure: jit it with the controller, spec and save static
+(:func:`jit_walk`, one compilation per controller family, shared by its
+variants) and vmap it over pushes, keys, joysticks, configs and environment
+parameters (:func:`batched_walk`; ``mjx_coman.env.batch_axes``).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 
 from mjx_coman import env as env_mod
-from mjx_coman import load_model
+from mjx_coman import ground_truth as gt
 from mjx_coman.actuators import JOINT_INDEX, default_kp_v_per_rad, make_actuator_params
-from mjx_coman.kinematics import quat_to_rot
-from mjx_coman.sensors import model_ids
-from mjx_coman.walking import controller as ctl
-from mjx_coman.walking import estimation as est
-
+from mjx_coman.controllers.base import Joystick, Observation, Telemetry, joystick as make_joystick
 
 WALKING_ANKLE_ROLL_KP_V_PER_RAD = 100.0
 
@@ -70,46 +72,46 @@ class WalkSpec(NamedTuple):
     """Static choices of a walk (hashable; changing one recompiles).
 
     Attributes:
-        controller: one of :data:`mjx_coman.walking.controller.CONTROLLERS`.
-        speed_mps: ``None`` walks at the controller parameters' speed (an
-            array, no recompilation); a float overrides it.
-        seconds: walk duration, s.
-        step_time_s: T, s; must match the controller parameters.
-        record_every: keep every Nth tick of the trajectories.
-        fall_height_m: a pelvis lower than this above the floor is a fall, m.
-        max_tilt_rad: a pelvis tilted further from upright is a fall, rad.
-        recover_tol_m, recover_tol_mps: a phase change counts as recovered when
-            the filtered sagittal pelvis error (eq. 15, ``e2`` and ``e2_dot``, the
-            pelvis relative to the stance foot) is within these, m and m/s
-            (unpushed in-place walking stays within about 0.03 m and 0.15 m/s).
+        seconds: walk duration, s (rounded up to whole control ticks, and to whole ``SaveAt.every``).
+        judge: the ground-truth thresholds (:class:`mjx_coman.ground_truth.Judge`).
     """
 
-    controller: str = "time-projection"
-    speed_mps: float | None = None
     seconds: float = 10.0
-    step_time_s: float = 0.4
-    record_every: int = 10
-    fall_height_m: float = 0.3
-    max_tilt_rad: float = 0.8
-    recover_tol_m: float = 0.03
-    recover_tol_mps: float = 0.2
+    judge: gt.Judge = gt.Judge()
 
     def validate(self) -> "WalkSpec":
-        if self.controller not in ctl.CONTROLLERS:
-            raise ValueError(f"unknown controller {self.controller!r}; choose one of {', '.join(ctl.CONTROLLERS)}")
-        for name in ("seconds", "step_time_s", "fall_height_m", "max_tilt_rad", "recover_tol_m", "recover_tol_mps"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}={v!r} must be a finite positive number")
-        if int(self.record_every) != self.record_every or self.record_every < 1:
-            raise ValueError(f"record_every={self.record_every!r} must be a positive integer")
-        if self.speed_mps is not None and not (math.isfinite(self.speed_mps)
-                                               and abs(self.speed_mps) <= ctl.MAX_SPEED_MPS):
-            raise ValueError(f"speed_mps={self.speed_mps!r} must be finite and within +-{ctl.MAX_SPEED_MPS}")
+        if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds) and self.seconds > 0):
+            raise ValueError(f"seconds={self.seconds!r} must be a finite positive number")
+        self.judge.validate()
         return self
 
 
-class WalkPush(NamedTuple):
+class SaveAt(NamedTuple):
+    """What to record: ``fn(RolloutState) -> pytree`` every ``every`` ticks (hashable: a module-level ``fn``)."""
+
+    fn: Callable[["RolloutState"], Any]
+    every: int = 10
+
+
+class RolloutState(NamedTuple):
+    """What a save function sees after a tick.
+
+    Attributes:
+        env: the simulation (``mjx.Data``, actuators, readings).
+        ctrl: the controller's state.
+        telemetry: the controller's telemetry of the tick.
+        command: the command it sent (before the delay line).
+        time_s: the end of the tick, s (runs on after a fall; the env clock is frozen).
+    """
+
+    env: env_mod.EnvState
+    ctrl: Any
+    telemetry: Telemetry
+    command: env_mod.Command
+    time_s: jax.Array
+
+
+class Push(NamedTuple):
     """A push on the upper torso (arrays; vmappable).
 
     Attributes:
@@ -123,12 +125,12 @@ class WalkPush(NamedTuple):
     force_n: jax.Array
 
 
-def no_push() -> WalkPush:
+def no_push() -> Push:
     """A zero push."""
-    return WalkPush(jnp.zeros(()), jnp.zeros(()), jnp.zeros(3))
+    return Push(jnp.zeros(()), jnp.zeros(()), jnp.zeros(3))
 
 
-def make_push(start_s, duration_s=0.1, force_n=None, *, impulse_ns=None, direction_rad=0.0) -> WalkPush:
+def make_push(start_s, duration_s=0.1, force_n=None, *, impulse_ns=None, direction_rad=0.0) -> Push:
     """A validated push, from a force vector or an impulse magnitude and heading.
 
     Args:
@@ -162,104 +164,61 @@ def make_push(start_s, duration_s=0.1, force_n=None, *, impulse_ns=None, directi
         if force.shape[-1:] != (3,) or not np.all(np.isfinite(force)):
             raise ValueError(f"force_n={force.tolist()} must be (3,) finite numbers")
     f = jnp.result_type(float)
-    return WalkPush(jnp.asarray(s, f), jnp.asarray(dur, f), jnp.asarray(force, f))
-
-
-class WalkTrace(NamedTuple):
-    """Signals at every ``record_every``-th tick (leading axis ``n_rec``).
-
-    Attributes:
-        error: (n_rec, 4) filtered sagittal error ``[e1, e2, e1_dot, e2_dot]`` (eq. 15), before the dead-zone.
-        adjustment_m: (n_rec,) footstep adjustment applied.
-        d: (n_rec,) phase sign.
-        measured_rel_m: (n_rec, 2, 2) relative positions from encoders + IMU (unfiltered).
-        true_rel_m: (n_rec, 2, 2) the same from the simulator's true poses.
-        knee_deflection_rad: (n_rec, 2) knee spring deflection link - motor (left, right), from the encoders.
-        foot_force_n: (n_rec, 2) foot normal forces (left, right), N.
-        pelvis_rpy_rad: (n_rec, 3) IMU roll, pitch, yaw of the pelvis, rad.
-        target_rad: (n_rec, 23) motor position targets sent at the recorded tick (before the delay).
-        link_angle_rad: (n_rec, 23) link encoder readings, rad.
-    """
-
-    error: jax.Array
-    adjustment_m: jax.Array
-    d: jax.Array
-    measured_rel_m: jax.Array
-    true_rel_m: jax.Array
-    knee_deflection_rad: jax.Array
-    foot_force_n: jax.Array
-    pelvis_rpy_rad: jax.Array
-    target_rad: jax.Array
-    link_angle_rad: jax.Array
+    return Push(jnp.asarray(s, f), jnp.asarray(dur, f), jnp.asarray(force, f))
 
 
 class WalkResult(NamedTuple):
-    """Outcome of one walk.
+    """Outcome of one walk (ground truth).
 
     Attributes:
         fell: it fell (or went non-finite).
         fall_time_s: when (``inf`` if it did not).
-        steps: phase changes done after the start-up phase (before a fall): the
-            index of the last walking phase begun (the start-up phase is -1).
-        steps_to_recover: phase changes after the one that ends the push until
-            the filtered sagittal pelvis error stays within ``recover_tol_m`` and
-            ``recover_tol_mps`` at every later phase change; 0 without a push; -1
-            if it fell or never settled.
-        max_abs_footstep_adjustment_m: largest |footstep adjustment| applied.
-        mean_speed_mps: pelvis x displacement over time across the last half of
-            the whole phases walked (at least two phases; 0 otherwise).
         nan: the state went non-finite (also counted in ``fell``).
-        pelvis_m: (n_rec, 3) pelvis position, world frame.
-        footsteps_m: (n_steps_max, 3) world position of each walking phase's stance
-            foot point at the phase start (index 0 the right foot after the start-up
-            phase; k >= 1 where the swing foot had landed at the k-th phase change); nan-padded.
-        phase_error: (n_steps_max, 4) filtered sagittal error at each phase start; nan-padded.
-        pelvis_at_step_m: (n_steps_max, 3) pelvis position at each phase start; nan-padded.
-        time_s: (n_rec,) time of the records, s.
-        trace: :class:`WalkTrace`.
+        touchdowns: feet landings before any fall (:class:`mjx_coman.ground_truth.Touchdowns`).
+        steps_to_recover: see :mod:`mjx_coman.ground_truth` (0 unpushed, -1 fell or never settled).
+        mean_speed_mps: forward CoM speed over the last half of the touchdowns.
+        max_abs_footstep_adjustment_m: largest |planned footstep adjustment| the controller reported.
+        log: the touchdown log.
+        step_velocity_mps: (n, 2) step velocities of the log (:func:`mjx_coman.ground_truth.step_velocities`).
+        cycle_velocity_mps: (2,) the limit cycle the walk ends in, the recovery's reference.
+        time_s: (n_rec,) times of the records (``None`` without ``SaveAt``).
+        saved: the records (leading axis ``n_rec``; ``None`` without ``SaveAt``).
     """
 
     fell: jax.Array
     fall_time_s: jax.Array
-    steps: jax.Array
-    steps_to_recover: jax.Array
-    max_abs_footstep_adjustment_m: jax.Array
-    mean_speed_mps: jax.Array
     nan: jax.Array
-    pelvis_m: jax.Array
-    footsteps_m: jax.Array
-    phase_error: jax.Array
-    pelvis_at_step_m: jax.Array
-    time_s: jax.Array
-    trace: WalkTrace
+    touchdowns: jax.Array
+    steps_to_recover: jax.Array
+    mean_speed_mps: jax.Array
+    max_abs_footstep_adjustment_m: jax.Array
+    log: gt.Touchdowns
+    step_velocity_mps: jax.Array
+    cycle_velocity_mps: jax.Array
+    time_s: Any = None
+    saved: Any = None
 
 
 class _Carry(NamedTuple):
     env: env_mod.EnvState
-    ctrl: ctl.ControllerState
+    ctrl: Any
+    telemetry: Telemetry
+    command: env_mod.Command
+    judge: gt.JudgeState
     fallen: jax.Array
     nan: jax.Array
     fall_time: jax.Array
     max_adj: jax.Array
-    footsteps: jax.Array
-    phase_error: jax.Array
-    pelvis_at_step: jax.Array
-    target: jax.Array
 
 
-def _push_force(push: WalkPush, t0, dt):
+def _push_force(push: Push, t0, dt):
     """Mean push force over the tick ``[t0, t0 + dt]`` (exact impulse)."""
     overlap = jnp.clip(jnp.minimum(t0 + dt, push.start_s + push.duration_s) - jnp.maximum(t0, push.start_s), 0.0, dt)
     return push.force_n * overlap / dt
 
 
-def _tilt_rad(quat) -> jax.Array:
-    """Angle between the pelvis z axis and the vertical."""
-    return jnp.arccos(jnp.clip(quat_to_rot(quat)[2, 2], -1.0, 1.0))
-
-
 def _all_finite(tree) -> jax.Array:
-    leaves = [x for x in jax.tree_util.tree_leaves(tree) if jnp.issubdtype(x.dtype, jnp.floating)]
+    leaves = [x for x in jax.tree_util.tree_leaves(tree) if jnp.issubdtype(jnp.asarray(x).dtype, jnp.floating)]
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
 
 
@@ -267,151 +226,166 @@ def _select(pred, a, b):
     return jax.tree_util.tree_map(lambda x, y: jnp.where(pred, x, y), a, b)
 
 
-@functools.lru_cache(maxsize=1)
-def foot_body_ids() -> tuple[int, int]:
-    """MuJoCo ids of the (left, right) foot bodies (their origin is the ankle centre)."""
-    m = load_model()
-    return (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "LFoot"),
-            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "RFoot"))
+def _concrete(x) -> np.ndarray | None:
+    """``x`` as NumPy, or ``None`` while tracing."""
+    try:
+        return np.asarray(x)
+    except jax.errors.TracerArrayConversionError:
+        return None
 
 
-def sizes(spec: WalkSpec, ctrl_params: ctl.ControllerParams) -> tuple[int, int, int]:
-    """``(n_ticks, n_rec, n_steps_max)`` of a walk (static)."""
-    dt = ctrl_params.dt_s
-    n_rec = int(math.ceil(round(spec.seconds / dt, 6) / spec.record_every))
-    n_ticks = n_rec * spec.record_every
-    return n_ticks, n_rec, n_ticks // ctrl_params.ticks_per_step + 1
+def n_ticks(spec: WalkSpec, control_period_s: float, save: SaveAt | None = None) -> int:
+    """Control ticks of a walk (static): ``seconds`` rounded up to whole ticks and whole records."""
+    every = 1 if save is None else int(save.every)
+    return int(math.ceil(round(spec.seconds / control_period_s, 6) / every)) * every
 
 
-def walk(env_params: env_mod.EnvParams, ctrl_params: ctl.ControllerParams, push: WalkPush, spec: WalkSpec,
-         key: jax.Array) -> WalkResult:
-    """One walk from the crouched stance (pure; jit with ``spec`` static).
+def check_walk(controller, config, env_params, joystick: Joystick | None = None, privileged_ok: bool = False) -> None:
+    """The checks :func:`walk` makes on concrete inputs (host; also call it before tracing a batch).
+
+    Raises:
+        ValueError: a privileged controller without ``privileged_ok``, an env
+            whose control period is not the controller's, or a joystick beyond
+            what the controller walks.
+    """
+    if controller.privileged and not privileged_ok:
+        raise ValueError(f"controller {getattr(controller, 'name', '')!r} reads the simulator's ground truth; "
+                         "pass privileged_ok=True to run it beside controllers that do not")
+    if config is None:
+        return
+    gait = controller.gait(config)
+    dt = _concrete(env_params.control_period_s)
+    if dt is not None and dt.ndim == 0 and abs(float(dt) - gait.control_period_s) > 1e-6:
+        raise ValueError(f"the environment's control period {float(dt):g} s differs from the controller's "
+                         f"{gait.control_period_s:g} s")
+    if joystick is not None:
+        vals = [_concrete(v) for v in joystick]
+        if all(v is not None for v in vals):
+            gait.check_joystick(*(float(np.max(np.abs(v))) for v in vals))
+
+
+def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax.Array, spec: WalkSpec = WalkSpec(),
+         joystick: Joystick | None = None, save: SaveAt | None = None, privileged_ok: bool = False) -> WalkResult:
+    """One walk from the controller's crouched stance (pure; jit with ``controller``, ``spec``, ``save`` static).
 
     Args:
+        controller: a :class:`~mjx_coman.controllers.base.Controller` (or its ``core()``).
+        config: its config pytree (:func:`mjx_coman.controllers.load`).
         env_params: environment parameters.
-        ctrl_params: controller parameters (:func:`~mjx_coman.walking.controller.make_controller_params`).
         push: the torso push (:func:`no_push` for none).
-        spec: static choices; ``seconds`` is rounded up to whole ``record_every`` ticks.
-        key: PRNG key (sensor noise).
+        key: PRNG key (sensor noise; the controller's ``init`` gets ``fold_in(key, 1)``).
+        spec: static choices.
+        joystick: commanded velocities (default: stand / walk in place).
+        save: what to record (``None``: the verdict only).
+        privileged_ok: allow a controller that reads ground truth.
 
     Returns:
         A :class:`WalkResult`.
 
     Raises:
-        ValueError: a bad spec, or a step time that differs from the controller's.
+        ValueError: see :func:`check_walk`, and a bad spec.
     """
     spec.validate()
-    if abs(ctrl_params.ticks_per_step * ctrl_params.dt_s - spec.step_time_s) > 1e-6:
-        raise ValueError(f"spec.step_time_s={spec.step_time_s} differs from the controller's "
-                         f"{ctrl_params.ticks_per_step * ctrl_params.dt_s}")
-    if spec.speed_mps is not None:
-        ctrl_params = ctrl_params.replace(speed_mps=jnp.asarray(spec.speed_mps, ctrl_params.speed_mps.dtype))
-    n_ticks, n_rec, n_steps_max = sizes(spec, ctrl_params)
-    dt = ctrl_params.dt_s
-    foot_ids = foot_body_ids()
-    pelvis_id = model_ids()["pelvis_body"]
+    check_walk(controller, config, env_params, joystick, privileged_ok)
+    gait = controller.gait(config)
+    joystick = make_joystick() if joystick is None else joystick
+    dt = gait.control_period_s
+    total = n_ticks(spec, dt, save)
+    judge = spec.judge
 
-    env0 = env_mod.reset(key, env_params, ctrl_params.knee_rad)
+    env0 = env_mod.reset(key, env_params, gait.knee_rad)
     f = env0.time_s.dtype
-    nanpad = lambda *shape: jnp.full(shape, jnp.nan, f)  # noqa: E731
-    feet0 = est.foot_points_world(env0.data, foot_ids)
-    carry0 = _Carry(
-        env=env0, ctrl=ctl.init(ctrl_params), fallen=jnp.zeros((), bool), nan=jnp.zeros((), bool),
-        fall_time=jnp.full((), jnp.inf, f), max_adj=jnp.zeros((), f),
-        footsteps=nanpad(n_steps_max, 3).at[0].set(feet0[1]), phase_error=nanpad(n_steps_max, 4),
-        pelvis_at_step=nanpad(n_steps_max, 3).at[0].set(env0.data.xpos[pelvis_id]),
-        target=env0.actuator.motor_angle_rad,
-    )
+    ctrl0 = controller.init(config, env_params, jax.random.fold_in(key, 1))
+    obs0 = Observation(env0.readings, joystick, jnp.zeros((), f), env0.data if controller.privileged else None)
+    shapes = jax.eval_shape(controller.step, config, ctrl0, obs0)
+    tel0, cmd0 = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), (shapes[2], shapes[1]))
+    carry0 = _Carry(env=env0, ctrl=ctrl0, telemetry=tel0, command=cmd0, judge=gt.init(judge, spec.seconds, f),
+                    fallen=jnp.zeros((), bool), nan=jnp.zeros((), bool), fall_time=jnp.full((), jnp.inf, f),
+                    max_adj=jnp.zeros((), f))
 
     def tick(c: _Carry, k):
         time = k.astype(f) * dt
-        cs, cmd = ctl.step(ctrl_params, c.ctrl, c.env.readings, spec.controller)
+        obs = Observation(c.env.readings, joystick, time, c.env.data if controller.privileged else None)
+        cs, cmd, tel = controller.step(config, c.ctrl, obs)
         cmd = cmd._replace(torso_force_n=_push_force(push, time, dt).astype(f))
         e = env_mod.step(env_params, c.env, cmd)
-        finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, cs.error, cs.adjustment_m))
-        low = e.data.xpos[pelvis_id, 2] < spec.fall_height_m
-        tilted = _tilt_rad(e.data.xquat[pelvis_id]) > spec.max_tilt_rad
-        bad = ~finite | low | tilted
+        finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, tel))
+        bad = ~finite | gt.fallen(e.data, judge)
         stop = c.fallen | bad
-        changed = (cs.tick == 1) & (cs.step > c.ctrl.step)  # the controller swapped feet this tick
-        idx = jnp.minimum(cs.step, n_steps_max - 1)
-        feet = est.foot_points_world(e.data, foot_ids)
-        stance = jnp.where(cs.d > 0, feet[1], feet[0])
-        rec = lambda arr, val: jnp.where(changed & ~stop, arr.at[idx].set(val), arr)  # noqa: E731
-        new = _Carry(
-            env=e, ctrl=cs, fallen=c.fallen, nan=c.nan, fall_time=c.fall_time,
-            max_adj=jnp.maximum(c.max_adj, jnp.abs(cs.adjustment_m)),
-            footsteps=rec(c.footsteps, stance), phase_error=rec(c.phase_error, cs.error[0]),
-            pelvis_at_step=rec(c.pelvis_at_step, e.data.xpos[pelvis_id]), target=cmd.target,
-        )
+        new = _Carry(env=e, ctrl=cs, telemetry=tel, command=cmd, judge=gt.update(c.judge, e.data, time + dt, dt, judge),
+                     fallen=c.fallen, nan=c.nan, fall_time=c.fall_time,
+                     max_adj=jnp.maximum(c.max_adj, jnp.linalg.norm(tel.footstep_adjustment_m)))
         out = _select(stop, c, new)
-        out = out._replace(
-            fallen=stop, nan=c.nan | (~c.fallen & ~finite),
-            fall_time=jnp.where(bad & ~c.fallen, time + dt, c.fall_time),
-        )
+        out = out._replace(fallen=stop, nan=c.nan | (~c.fallen & ~finite),
+                           fall_time=jnp.where(bad & ~c.fallen, time + dt, c.fall_time))
         return out, None
 
-    def record(c: _Carry, k0):
-        c, _ = jax.lax.scan(tick, c, k0 + jnp.arange(spec.record_every))
-        e, cs = c.env, c.ctrl
-        left, right = est.true_feet(e.data, foot_ids, pelvis_id)
-        true_rel = est.relative_from_feet(left, right, cs.d)
-        force = e.readings.foot_normal_force_n
-        trace = WalkTrace(
-            error=cs.error[0], adjustment_m=cs.adjustment_m, d=cs.d,
-            measured_rel_m=est.measure_relative(e.readings, cs.d), true_rel_m=true_rel,
-            knee_deflection_rad=est.knee_deflection_rad(e.readings), foot_force_n=jnp.stack([force[1], force[0]]),
-            pelvis_rpy_rad=e.readings.imu_rpy_rad, target_rad=c.target, link_angle_rad=e.readings.link_angle_rad,
-        )
-        time = (k0 + spec.record_every).astype(f) * dt  # runs on after a fall (the env clock is frozen)
-        return c, (time, e.data.xpos[pelvis_id], trace)
+    if save is None:
+        c, _ = jax.lax.scan(tick, carry0, jnp.arange(total))
+        time_s = saved = None
+    else:
+        every = int(save.every)
 
-    c, (time_s, pelvis, trace) = jax.lax.scan(record, carry0, jnp.arange(n_rec) * spec.record_every)
-    steps = c.ctrl.step
-    T = spec.step_time_s
+        def record(c: _Carry, k0):
+            c, _ = jax.lax.scan(tick, c, k0 + jnp.arange(every))
+            t = (k0 + every).astype(f) * dt
+            return c, (t, save.fn(RolloutState(c.env, c.ctrl, c.telemetry, c.command, t)))
 
-    # Steps to recover: phase changes after the one ending the push until the error stays small.
-    ks = jnp.arange(n_steps_max)
-    done = ks <= steps
-    small = (jnp.abs(c.phase_error[:, 1]) <= spec.recover_tol_m) & (jnp.abs(c.phase_error[:, 3]) <= spec.recover_tol_mps)
-    ok = jnp.where(done & (ks >= 1), small, True)
-    settled = jnp.flip(jnp.cumprod(jnp.flip(ok))).astype(bool)  # ok from k on
-    push_end = push.start_s + push.duration_s
+        c, (time_s, saved) = jax.lax.scan(record, carry0, jnp.arange(total // every) * every)
+
     pushed = jnp.any(push.force_n != 0)
-    push_step = jnp.floor(push_end / T).astype(jnp.int32) - 1  # walking phase in which the push ends (start-up = -1)
-    first = jnp.min(jnp.where(settled & (ks > push_step) & done, ks, n_steps_max))
-    recovered = (first < n_steps_max) & ~c.fallen & (steps > push_step)
-    steps_to_recover = jnp.where(pushed, jnp.where(recovered, first - push_step, -1),
-                                 jnp.where(c.fallen, -1, 0)).astype(jnp.int32)
-
-    # Mean speed over the last half of the whole phases.
-    k1 = steps
-    k0 = steps // 2
-    x = jnp.nan_to_num(c.pelvis_at_step[:, 0])
-    span = (k1 - k0).astype(f) * T
-    speed = jnp.where(k1 - k0 >= 2, (x[k1 % n_steps_max] - x[k0]) / jnp.maximum(span, T), 0.0)
+    v = gt.verdict(c.judge.log, push.start_s + push.duration_s, pushed, c.fallen, judge)
     return WalkResult(
-        fell=c.fallen, fall_time_s=c.fall_time, steps=steps, steps_to_recover=steps_to_recover,
-        max_abs_footstep_adjustment_m=c.max_adj, mean_speed_mps=speed, nan=c.nan, pelvis_m=pelvis,
-        footsteps_m=c.footsteps, phase_error=c.phase_error, pelvis_at_step_m=c.pelvis_at_step, time_s=time_s,
-        trace=trace,
+        fell=c.fallen, fall_time_s=c.fall_time, nan=c.nan, touchdowns=c.judge.log.count,
+        steps_to_recover=v.steps_to_recover, mean_speed_mps=v.mean_speed_mps, max_abs_footstep_adjustment_m=c.max_adj,
+        log=c.judge.log, step_velocity_mps=v.step_velocity_mps, cycle_velocity_mps=v.cycle_velocity_mps, time_s=time_s,
+        saved=saved,
     )
 
 
-jit_walk = jax.jit(walk, static_argnames=("spec",))
+def pelvis_and_com(state: RolloutState) -> dict:
+    """A save function: pelvis and CoM positions (world) and the common telemetry without ``extra``."""
+    return dict(pelvis_m=gt.pelvis_m(state.env.data), com_m=gt.com_m(state.env.data),
+                telemetry=state.telemetry._replace(extra=()))
 
 
-def batched_walk(spec: WalkSpec, env_axes=None, ctrl_axes=None):
-    """A jitted ``walk`` vmapped over ``(push, key)`` (leading axis), optionally env/controller params too.
+def _build(core, spec: WalkSpec, save, privileged_ok: bool, axes):
+    def one(config, env_params, push, key, joystick):
+        return walk(core, config, env_params, push, key, spec, joystick, save, privileged_ok)
+
+    return jax.jit(one if axes is None else jax.vmap(one, in_axes=axes))
+
+
+_cached = functools.lru_cache(maxsize=64)(_build)
+
+
+def _jitted(controller, spec, save, privileged_ok, axes):
+    if controller.privileged and not privileged_ok:
+        check_walk(controller, None, None, privileged_ok=False)
+    try:
+        return _cached(controller.core(), spec, save, privileged_ok, axes)
+    except TypeError:  # unhashable axes (an EnvParams of in_axes): compiled per call site
+        return _build(controller.core(), spec, save, privileged_ok, axes)
+
+
+def jit_walk(controller, spec: WalkSpec = WalkSpec(), save: SaveAt | None = None, privileged_ok: bool = False):
+    """``fn(config, env_params, push, key, joystick)``: :func:`walk` jitted, shared by the family's variants.
+
+    Keep the returned function to reuse its compilation (it is also cached per family, spec and save).
+    """
+    return _jitted(controller, spec, save, privileged_ok, None)
+
+
+def batched_walk(controller, spec: WalkSpec = WalkSpec(), save: SaveAt | None = None, *, config_axes=None,
+                 env_axes=None, joystick_axes=None, privileged_ok: bool = False):
+    """:func:`walk` jitted and vmapped over ``(push, key)`` (leading axis), optionally configs, envs, joysticks.
 
     Args:
-        spec: static walk choices.
+        config_axes: ``None`` shares the config, ``0`` batches every leaf.
         env_axes: ``None`` shares the env params, or ``in_axes`` from ``mjx_coman.env.batch_axes``.
-        ctrl_axes: ``None`` shares the controller params, or ``0`` to batch every leaf.
+        joystick_axes: ``None`` shares the joystick, ``0`` batches it.
 
     Returns:
-        ``fn(env_params, ctrl_params, push, key) -> WalkResult`` with a leading batch axis.
-        Keep the returned function to reuse its compilation.
+        ``fn(config, env_params, push, key, joystick) -> WalkResult`` with a leading batch axis.
     """
-    fn = jax.vmap(lambda e, cp, p, k: walk(e, cp, p, spec, k), in_axes=(env_axes, ctrl_axes, 0, 0))
-    return jax.jit(fn)
+    return _jitted(controller, spec, save, privileged_ok, (config_axes, env_axes, 0, 0, joystick_axes))

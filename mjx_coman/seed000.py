@@ -1,36 +1,34 @@
-"""Walking experiments of seed 000 on the simulated COMAN, each printing JSON.
+"""The walking experiments of seed 000 on the simulated COMAN, each printing JSON.
 
-``python -m mjx_coman.walking.experiments {push-table,drag,scatter,speeds,ten,identify} [options] [--json]``
+``python -m mjx_coman.seed000 {push-table,drag,scatter,speeds,ten,identify} [options] [--json]``
 
 * ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
   at 8 phases of one step of the in-place gait, over a grid of impulses, for
-  the closed loop (time projection) and the open loop (no footstep
-  adjustment): recovered (no fall in the ``--steps-after`` steps that
-  follow) or fell, settled (the filtered error back within the walk's
-  tolerance, ``WalkResult.steps_to_recover >= 0``) and steps to recover
-  (seed "Intermittent Push Recovery", Figures 16-17). The claim checked: at every phase the
-  closed loop recovers an impulse at least twice the largest that the open
-  loop recovers at every phase.
+  ``time-projection`` (the closed loop) and ``open-loop`` (no footstep
+  adjustment): recovered (no fall in the ``--steps-after`` steps that follow)
+  or fell, settled (the ground truth's ``steps_to_recover >= 0``, see
+  :mod:`mjx_coman.ground_truth`) and steps to recover (seed "Intermittent Push
+  Recovery", Figures 16-17). The claim checked: at every phase the closed
+  loop recovers an impulse at least twice the largest that the open loop
+  recovers at every phase.
 * ``drag``: a constant forward or backward force on the torso for the whole
   walk on the open-loop in-place gait (seed Figure 18): drift speed, no fall.
   The default forces are +-1 N (and 0 N for reference): on the simulated
   robot 2 N and more topple the open loop within 10 s.
 * ``scatter``: in-place walking for 10 s (25 steps) open loop, closed loop,
-  and closed loop without dead-zones; the stance foot relative to the pelvis
-  at every phase change (seed Figure 14) and its spread.
+  and closed loop without dead-zones; the landing foot relative to the pelvis
+  at every touchdown (seed Figure 14) and its spread.
 * ``speeds``: closed-loop walking at 0.1 and 0.2 m/s (seed Figure 19): mean speed.
 * ``ten``: ``scatter``, ``drag`` and ``speeds`` in one batch (one compilation).
 * ``identify``: dead-zone thresholds and knee deflections from the open-loop
-  in-place walk (seed Figures 7 and 9; :mod:`mjx_coman.walking.identification`).
+  in-place walk (seed Figures 7 and 9;
+  :mod:`mjx_coman.controllers.time_projection.identification`).
 
-The open loop is run as the time-projection controller with
-``footstep_gain = 0`` (no footstep adjustment; adaptive lift and foot
-orientation feedback on, exactly the computations of the ``"open-loop"``
-controller), and "no dead-zone" as thresholds of 1e-7 (the smooth dead-zone
-then shifts the error by at most 1e-7), so that every variant of a table is
-one batch of one compiled walk (``batched_walk`` over controller parameters,
-pushes and keys). Each function returns a dict of plain numbers (and
-per-rollout arrays under ``"rollouts"``, left out of the JSON unless ``--rollouts``).
+The variants are the registered configurations of the time-projection family
+(``time-projection``, ``open-loop``, ``no-deadzone``), so every variant of a
+table is one batch of one compiled walk (``batched_walk`` over configs,
+pushes, keys and joysticks). Each function returns a dict of plain numbers
+(and the batch's results under ``"raw"``, left out of the JSON).
 """
 
 from __future__ import annotations
@@ -43,68 +41,68 @@ import math
 import sys
 import time
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mjx_coman import controllers
+from mjx_coman import rollout as ro
+from mjx_coman.controllers.base import joystick
+
 STEP_TIME_S = 0.4
-NO_DEADZONE = 1e-7  # dead-zone threshold that leaves the error untouched (to 1e-7)
 PUSH_DURATION_S = 0.1
 PUSH_TABLE_IMPULSES_NS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0)  # default grid, 1 N s apart
 
 
-@functools.lru_cache(maxsize=None)
-def _walker(spec):
-    from mjx_coman.walking.rollout import batched_walk
-
-    return batched_walk(spec, ctrl_axes=0)
+FAMILY = "time-projection"
+VARIANTS = ("time-projection", "open-loop", "no-deadzone")
 
 
 def _stack(items):
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *items)
 
 
-def variant(base, name: str):
-    """Controller parameters of a named variant: ``closed-loop``, ``open-loop`` or ``no-deadzone``."""
-    if name == "closed-loop":
-        return base
-    if name == "open-loop":
-        return base.replace(footstep_gain=jnp.zeros_like(base.footstep_gain))
-    if name == "no-deadzone":
-        return base.replace(deadzone=jnp.full_like(base.deadzone, NO_DEADZONE))
-    raise ValueError(f"unknown variant {name!r}")
+def config(name: str = FAMILY, **overrides):
+    """The config of a registered time-projection variant (``time-projection``, ``open-loop``, ``no-deadzone``, ``dlqr``)."""
+    ctrl, cfg = controllers.load(name, overrides)
+    if ctrl.core() != controllers.get(FAMILY).core():
+        raise ValueError(f"{name!r} is not a time-projection variant")
+    return cfg
 
 
-def run_batch(env_params, ctrl_list, pushes, spec, seed: int = 0, chunk: int = 64):
-    """Walk every (controller params, push) pair of the lists, in chunks of one compiled vmap.
+def push_start_s(push_step, push_phase, cfg=None) -> float:
+    """Start of a push at phase ``push_phase`` of walking step ``push_step`` (after the start-up phase), s."""
+    gait = controllers.get(FAMILY).gait(config() if cfg is None else cfg)
+    return gait.first_step_s + (np.asarray(push_step) + push_phase) * gait.step_time_s
+
+
+@functools.lru_cache(maxsize=None)
+def _walker(spec, save):
+    return ro.batched_walk(controllers.get(FAMILY), spec, save, config_axes=0, joystick_axes=0)
+
+
+def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64, speeds=None, save=None):
+    """Walk every (config, push, speed) of the lists, in chunks of one compiled vmap.
 
     Returns:
-        The :class:`~mjx_coman.walking.rollout.WalkResult` with a leading batch
-        axis, as NumPy arrays.
+        The :class:`~mjx_coman.rollout.WalkResult` with a leading batch axis, as NumPy arrays.
     """
-    n = len(ctrl_list)
+    n = len(configs)
     if n != len(pushes) or n == 0:
-        raise ValueError(f"need as many pushes as controller params (> 0), got {len(pushes)} and {n}")
+        raise ValueError(f"need as many pushes as configs (> 0), got {len(pushes)} and {n}")
+    speeds = [0.0] * n if speeds is None else list(speeds)
     size = min(chunk, n)
-    fn = _walker(spec)
+    fn = _walker(spec, save)
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
     outs = []
     for i in range(0, n, size):
         idx = list(range(i, min(i + size, n)))
         idx += [idx[-1]] * (size - len(idx))  # pad the last chunk: one compiled batch size
-        res = fn(env_params, _stack([ctrl_list[j] for j in idx]), _stack([pushes[j] for j in idx]), keys[np.array(idx)])
+        joy = _stack([joystick(speeds[j]) for j in idx])
+        res = fn(_stack([configs[j] for j in idx]), env_params, _stack([pushes[j] for j in idx]),
+                 keys[np.array(idx)], joy)
         outs.append(jax.tree_util.tree_map(np.asarray, res))
-    res = jax.tree_util.tree_map(lambda *xs: np.concatenate(xs)[:n], *outs)
-    return res
-
-
-def _setup(speed_mps: float = 0.0, **kw):
-    from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import walking_env_params
-
-    env = walking_env_params()
-    return env, make_controller_params(env, speed_mps, **kw)
+    return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs)[:n], *outs)
 
 
 def largest_recovered(impulses, recovered) -> np.ndarray:
@@ -121,41 +119,38 @@ def largest_recovered(impulses, recovered) -> np.ndarray:
 
 
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
-               steps_after: int = 8, directions=("forward", "backward"), controllers=("closed-loop", "open-loop"),
+               steps_after: int = 8, directions=("forward", "backward"), variants=("time-projection", "open-loop"),
                seed: int = 0, chunk: int = 64) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place)."""
-    from mjx_coman.walk import push_start_s
-    from mjx_coman.walking.rollout import WalkSpec, make_push
-
     imp = np.asarray(sorted(impulses), float)
     if imp.size == 0 or np.any(imp <= 0):
         raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
-    env, base = _setup(0.0)
+    env = ro.walking_env_params()
     phases = np.arange(n_phases) / n_phases
-    seconds = push_start_s(push_step + 1 + steps_after, 0.0)
-    spec = WalkSpec(controller="time-projection", seconds=seconds)
+    seconds = float(push_start_s(push_step + 1 + steps_after, 0.0))
+    spec = ro.WalkSpec(seconds=seconds)
     sign = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
     ctrl, pushes, index = [], [], []
-    for c in controllers:
-        cp = variant(base, c)
+    for c in variants:
+        cp = config(c)
         for dname in directions:
             for ph in phases:
                 for m in imp:
                     ctrl.append(cp)
-                    pushes.append(make_push(push_start_s(push_step, ph), PUSH_DURATION_S,
-                                            impulse_ns=m, direction_rad=sign[dname]))
+                    pushes.append(ro.make_push(float(push_start_s(push_step, ph)), PUSH_DURATION_S,
+                                               impulse_ns=m, direction_rad=sign[dname]))
                     index.append((c, dname, ph, m))
     t0 = time.perf_counter()
     res = run_batch(env, ctrl, pushes, spec, seed, chunk)
     wall = time.perf_counter() - t0
-    shape = (len(controllers), len(directions), n_phases, imp.size)
+    shape = (len(variants), len(directions), n_phases, imp.size)
     fell = res.fell.reshape(shape)
     s2r = res.steps_to_recover.reshape(shape)
     out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,
            "push_duration_s": PUSH_DURATION_S, "seconds": seconds, "rollouts": len(ctrl),
            "wall_s": round(wall, 1), "tables": {}}
     every = {}
-    for i, c in enumerate(controllers):
+    for i, c in enumerate(variants):
         for j, dname in enumerate(directions):
             largest = largest_recovered(imp, ~fell[i, j])
             every[(c, dname)] = float(largest.min())
@@ -166,25 +161,24 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
                 "largest_recovered_ns_per_phase": largest.tolist(),
                 "recovered_at_every_phase_ns": every[(c, dname)],
             }
-    if "closed-loop" in controllers and "open-loop" in controllers:
+    if FAMILY in variants and "open-loop" in variants:
         out["claim"] = {}
         for dname in directions:
-            cl, ol = every[("closed-loop", dname)], every[("open-loop", dname)]
+            cl, ol = every[(FAMILY, dname)], every[("open-loop", dname)]
             out["claim"][dname] = {"closed_loop_ns": cl, "open_loop_ns": ol,
                                    "ratio": (cl / ol) if ol > 0 else None, "holds": bool(cl >= 2 * ol and cl > 0)}
     out["raw"] = res
     return out
 
 
-def _relative_footsteps(res, skip_steps: int = 2) -> dict:
-    """Stance foot minus pelvis at each phase start, split by foot; per rollout lists."""
-    rel = res.footsteps_m - res.pelvis_at_step_m  # (b, n_steps, 3)
+def _relative_footsteps(res, skip: int = 1) -> list[dict]:
+    """The landing foot minus the pelvis at each touchdown after the first ``skip``, split by foot; per rollout."""
+    rel = res.log.foot_m - res.log.pelvis_m  # (b, n, 3)
     out = []
     for b in range(rel.shape[0]):
-        k = int(res.steps[b])
-        r = rel[b, skip_steps:k + 1, :2]
-        out.append({"right": r[(np.arange(skip_steps, k + 1) % 2) == 0].tolist(),
-                    "left": r[(np.arange(skip_steps, k + 1) % 2) == 1].tolist()})
+        k = int(res.touchdowns[b])
+        r, foot = rel[b, skip:k, :2], res.log.foot[b, skip:k]
+        out.append({"left": r[foot == 0].tolist(), "right": r[foot == 1].tolist()})
     return out
 
 
@@ -205,70 +199,94 @@ def ten_second_walks(seconds: float = 10.0, drag_forces_n=(1.0, 0.0, -1.0), spee
 
     ``which`` picks the experiments of the batch.
     """
-    from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import WalkSpec, make_push, no_push
-
-    env, base = _setup(0.0)
-    spec = WalkSpec(controller="time-projection", seconds=seconds)
-    names, ctrl, pushes = [], [], []
-    for v in ("open-loop", "closed-loop", "no-deadzone") if "scatter" in which else ():
+    env = ro.walking_env_params()
+    spec = ro.WalkSpec(seconds=seconds)
+    save = ro.SaveAt(ro.pelvis_and_com, every=50)
+    names, cfgs, pushes, vs = [], [], [], []
+    for v in VARIANTS if "scatter" in which else ():
         names.append(("scatter", v))
-        ctrl.append(variant(base, v))
-        pushes.append(no_push())
+        cfgs.append(config(v))
+        pushes.append(ro.no_push())
+        vs.append(0.0)
     for f in drag_forces_n if "drag" in which else ():
         names.append(("drag", f))
-        ctrl.append(variant(base, "open-loop"))
-        pushes.append(make_push(0.0, seconds + 1.0, (f, 0.0, 0.0)))
+        cfgs.append(config("open-loop"))
+        pushes.append(ro.make_push(0.0, seconds + 1.0, (f, 0.0, 0.0)))
+        vs.append(0.0)
     for v in speeds if "speeds" in which else ():
         names.append(("speed", v))
-        ctrl.append(make_controller_params(env, v))
-        pushes.append(no_push())
+        cfgs.append(config())
+        pushes.append(ro.no_push())
+        vs.append(v)
     t0 = time.perf_counter()
-    res = run_batch(env, ctrl, pushes, spec, seed)
+    res = run_batch(env, cfgs, pushes, spec, seed, speeds=vs, save=save)
     wall = time.perf_counter() - t0
     rel = _relative_footsteps(res)
-    out = {"seconds": seconds, "rollouts": len(ctrl), "wall_s": round(wall, 1), "scatter": {}, "drag": {},
+    out = {"seconds": seconds, "rollouts": len(cfgs), "wall_s": round(wall, 1), "scatter": {}, "drag": {},
            "speeds": {}}
     for b, (kind, val) in enumerate(names):
-        common = {"fell": bool(res.fell[b]), "steps": int(res.steps[b]), "mean_speed_mps": float(res.mean_speed_mps[b]),
+        common = {"fell": bool(res.fell[b]), "touchdowns": int(res.touchdowns[b]),
+                  "mean_speed_mps": float(res.mean_speed_mps[b]),
                   "max_abs_footstep_adjustment_m": float(res.max_abs_footstep_adjustment_m[b])}
         if kind == "scatter":
             out["scatter"][val] = {**common, "spread": footstep_spread_m(rel[b]), "footsteps_rel_pelvis_m": rel[b]}
         elif kind == "drag":
-            p = res.pelvis_m[b]
-            k = int(res.steps[b])
-            x = res.pelvis_at_step_m[b, :k + 1, 0]
+            k = int(res.touchdowns[b])
+            x, t = res.log.pelvis_m[b, :k, 0], res.log.time_s[b, :k]
             out["drag"][f"{val:+g}N"] = {**common, "force_n": val,
-                                          "overall_speed_mps": float((x[-1] - x[0]) / max(k * STEP_TIME_S, 1e-9)),
-                                          "peak_step_speed_mps": float(np.max(np.abs(np.diff(x))) / STEP_TIME_S)
-                                          if k > 0 else 0.0,
-                                          "final_pelvis_m": p[-1].tolist()}
+                                          "overall_speed_mps": float((x[-1] - x[0]) / max(t[-1] - t[0], 1e-9))
+                                          if k > 1 else 0.0,
+                                          "peak_step_speed_mps": float(np.max(np.abs(np.diff(x) / np.diff(t))))
+                                          if k > 1 else 0.0,
+                                          "final_pelvis_m": res.saved["pelvis_m"][b, -1].tolist()}
         else:
             out["speeds"][f"{val:g}"] = {**common, "commanded_mps": val,
                                          "within_25_percent": bool(abs(res.mean_speed_mps[b] - val) <= 0.25 * val)}
     sc = out["scatter"]
-    if all(k in sc for k in ("closed-loop", "no-deadzone")):
+    if all(k in sc for k in (FAMILY, "no-deadzone")):
         out["deadzone_no_larger_scatter"] = bool(
-            sc["closed-loop"]["spread"]["mean_sagittal_m"] <= sc["no-deadzone"]["spread"]["mean_sagittal_m"])
+            sc[FAMILY]["spread"]["mean_sagittal_m"] <= sc["no-deadzone"]["spread"]["mean_sagittal_m"])
     out["raw"] = res
     return out
 
 
+def open_loop_walk(env_params, *, seconds: float = 10.0, seed: int = 0):
+    """The seed's identification walk, recorded every tick: open loop, in place (``SaveAt(trace, every=1)``).
+
+    Seed 000 identifies both the dead-zones and the knee deflections on this
+    gait: speed 0, no footstep adjustment (adaptive lift and foot orientation
+    feedback on). Pass the result to both ``identify_deadzones`` and
+    ``identify_knee_deflection`` (:mod:`mjx_coman.controllers.time_projection.identification`).
+
+    Raises:
+        ValueError: a non-positive duration.
+    """
+    from mjx_coman.controllers.time_projection.trace import trace
+
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds must be finite and positive, got {seconds}")
+    ctrl, cfg = controllers.load("open-loop")
+    fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=float(seconds)), ro.SaveAt(trace, every=1))
+    return fn(cfg, env_params, ro.no_push(), jax.random.PRNGKey(seed), joystick())
+
+
 def identify(seconds: float = 10.0, settle_s: float = 2.0, seed: int = 0) -> dict:
     """Dead-zone thresholds (Figure 9) and knee deflections (Figure 7) from the open-loop in-place walk."""
-    from mjx_coman.walking import identification as idn
+    from mjx_coman.controllers.time_projection import identification as idn
 
-    env, base = _setup(0.0)
+    if not settle_s < seconds:
+        raise ValueError(f"settle_s={settle_s} must be shorter than the walk ({seconds} s)")
+    env = ro.walking_env_params()
     t0 = time.perf_counter()
-    r = jax.tree_util.tree_map(np.asarray, idn.open_loop_walk(env, base, seconds=seconds, seed=seed))
+    r = jax.tree_util.tree_map(np.asarray, open_loop_walk(env, seconds=seconds, seed=seed))
     wall = time.perf_counter() - t0
-    dz = idn.identify_deadzones(result=r, settle_s=settle_s)
-    dz_pc = idn.identify_deadzones(result=r, settle_s=settle_s, at_phase_change=True)
-    kn = idn.identify_knee_deflection(env, result=r, settle_s=settle_s)
+    dz = idn.identify_deadzones(r, settle_s=settle_s)
+    dz_pc = idn.identify_deadzones(r, settle_s=settle_s, at_phase_change=True)
+    kn = idn.identify_knee_deflection(r, idn.total_weight_n(env.model), settle_s=settle_s)
     k = float(np.asarray(env.actuator.spring_stiffness_nm_per_rad)[idn.LEFT_KNEE])
     return {
-        "seconds": seconds, "settle_s": settle_s, "fell": bool(r.fell), "steps": int(r.steps), "wall_s": round(wall, 1),
-        "deadzone_names": list(idn.ERROR_NAMES),
+        "seconds": seconds, "settle_s": settle_s, "fell": bool(r.fell), "touchdowns": int(r.touchdowns),
+        "wall_s": round(wall, 1), "deadzone_names": list(idn.ERROR_NAMES),
         "deadzone_thresholds": np.asarray(dz.thresholds).tolist(), "error_mean": np.asarray(dz.mean).tolist(),
         "deadzone_thresholds_at_phase_change": np.asarray(dz_pc.thresholds).tolist(),
         "samples": int(dz.n_samples),
@@ -312,7 +330,7 @@ def _jsonable(x):
 def _run(args):
     if args.experiment == "push-table":
         if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
-            sys.stderr.write("python -m mjx_coman.walking.experiments: error: --phases, --steps-after >= 1, "
+            sys.stderr.write("python -m mjx_coman.seed000: error: --phases, --steps-after >= 1, "
                              "--push-step >= 0 and --impulses > 0 required\n")
             return None
         res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed)
@@ -320,7 +338,7 @@ def _run(args):
         res = identify(args.seconds, args.settle, args.seed)
     else:
         if not 0 < args.seconds <= 600:
-            sys.stderr.write(f"python -m mjx_coman.walking.experiments: error: --seconds must lie in (0, 600], "
+            sys.stderr.write(f"python -m mjx_coman.seed000: error: --seconds must lie in (0, 600], "
                              f"got {args.seconds}\n")
             return None
         which = ("scatter", "drag", "speeds") if args.experiment == "ten" else (args.experiment,)
@@ -329,7 +347,7 @@ def _run(args):
 
 
 def main(argv=None) -> int:
-    ap = _Parser(prog="python -m mjx_coman.walking.experiments", description=__doc__.splitlines()[0])
+    ap = _Parser(prog="python -m mjx_coman.seed000", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="experiment", required=True, parser_class=_Parser)
     pt = sub.add_parser("push-table")
     pt.add_argument("--impulses", type=_floats, default=list(PUSH_TABLE_IMPULSES_NS), help="N s")
@@ -349,8 +367,12 @@ def main(argv=None) -> int:
         sp.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     # mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent: keep stdout for the JSON.
-    with contextlib.redirect_stdout(sys.stderr):
-        res = _run(args)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            res = _run(args)
+    except ValueError as e:
+        sys.stderr.write(f"python -m mjx_coman.seed000: error: {' '.join(str(e).split())}\n")
+        return 2
     if res is None:
         return 2
     print(json.dumps(_jsonable(res), indent=2 if args.json else None))

@@ -1,5 +1,26 @@
-"""Test-wide settings: the XLA CPU flags of :mod:`jaxlp.xla_flags`, set before JAX starts."""
+"""Test-wide settings: the XLA CPU flags of :mod:`jaxlp.xla_flags`, set before JAX starts; test grouping.
+
+Under pytest-xdist (``-n 2 --dist loadgroup``, the README's test command) each test module is one group, so
+its module-scoped fixtures are built once; modules that share a session-scoped compilation share a group:
+the shared walk of every controller (``tests/mjx_coman/conftest.py``), and the subprocesses that share JAX's
+persistent compilation cache (the walk command line and notebook 03).
+"""
+
+import pytest
 
 from jaxlp.xla_flags import configure_cpu
 
 configure_cpu()
+
+SHARED_GROUPS = {
+    "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py"),
+    "walk-subprocesses": ("test_walk_cli.py", "test_notebook_03.py"),
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    group_of = {f: g for g, files in SHARED_GROUPS.items() for f in files}
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            name = item.path.name
+            item.add_marker(pytest.mark.xdist_group(group_of.get(name, str(item.path.relative_to(config.rootpath)))))

@@ -39,24 +39,27 @@ def test_twin_controller_gives_the_jax_controllers_targets(controller="time-proj
     No ``jax.enable_x64`` here: toggling it in the test session broke later 32-bit tests (``lax.add`` of int64
     and int32 indices inside ``.at`` updates with NumPy index arrays), so float32 JAX meets float64 NumPy.
     """
-    from mjx_coman import env as E
-    from mjx_coman.walking import controller as C
-    from mjx_coman.walking.rollout import walking_env_params
+    from mjx_coman import controllers, env as E
+    from mjx_coman.controllers.base import Observation
+    from mjx_coman.controllers.time_projection import controller as C
+    from mjx_coman.rollout import walking_env_params
 
     env = walking_env_params()
-    cp = C.make_controller_params(env, 0.1)
+    cp = controllers.load(controller)[1]
     r0 = jax.tree_util.tree_map(np.asarray, E.reset(jax.random.PRNGKey(0), env, cp.knee_rad).readings)
-    step = jax.jit(C.step, static_argnames="controller")
+    step = jax.jit(C.step)
     js, ts = C.init(cp), numpy_twin.twin(C.init)(numpy_twin.to_twin_tree(cp))
     tcp, tstep = numpy_twin.to_twin_tree(cp), numpy_twin.twin(C.step)
+    joy = controllers.joystick(0.1)
     worst = 0.0
     for k in range(260):
         sway = 0.02 * np.sin(2 * np.pi * k / 80.0)
         r = r0._replace(link_angle_rad=r0.link_angle_rad + sway, motor_angle_rad=r0.motor_angle_rad + 0.5 * sway,
                         imu_rpy_rad=r0.imu_rpy_rad + np.array([0.0, sway, 0.0]),
                         foot_normal_force_n=np.array([150.0 + 100 * sway / 0.02, 130.0]))
-        js, jcmd = step(cp, js, jax.tree_util.tree_map(jax.numpy.asarray, r), controller=controller)
-        ts, tcmd = tstep(tcp, ts, jax.tree_util.tree_map(numpy_twin.as_twin, r), controller)
+        js, jcmd, _ = step(cp, js, Observation(jax.tree_util.tree_map(jax.numpy.asarray, r), joy, k * 0.002))
+        ts, tcmd, _ = tstep(tcp, ts, Observation(jax.tree_util.tree_map(numpy_twin.as_twin, r),
+                                                   numpy_twin.to_twin_tree(joy), k * 0.002))
         worst = max(worst, float(np.max(np.abs(np.asarray(jcmd.target) - np.asarray(tcmd.target)))))
     assert int(js.step) == int(ts.step) == 0  # walking began
     assert abs(float(ts.adjustment_m)) > 1e-4  # the footstep feedback acted

@@ -1,4 +1,6 @@
-"""Shared, session-scoped fixtures: one compiled reset and one compiled tick chunk."""
+"""Shared, session-scoped fixtures: one compiled reset and tick chunk, and one compiled walk of every controller."""
+
+from typing import NamedTuple
 
 import jax
 import numpy as np
@@ -30,3 +32,155 @@ def stand_run(env_params, reset_state, standing_q):
     final, rec = experiments.run(env_params, reset_state, np.broadcast_to(standing_q, (n, len(standing_q))),
                                  np.zeros((n, 3)))
     return final, rec
+
+
+# --- shared walks: one compiled, vmapped, forward-differentiated walk of every controller family ----------
+#
+# Every registered controller name runs in one batch: the families are bundled into one controller
+# (mjx_coman.controllers.bundle: a switch on an index), and the variants of a family are configurations of
+# its member. One call gives the contract test its unpushed walks and its gradient checks (rows perturbed
+# by +-h for central differences) and the rollout and ground-truth tests their pushed walks, so the whole
+# suite compiles one walk for all of them (the physics, most of the compilation, once).
+
+WALK_S = 2.4  # a start-up phase and five steps of the time-projection gait
+WALK_ROWS = 16
+GRAD_WINDOW_S = 0.3  # the cost of the gradient check: the controller's own start, before any step
+PUSH_START_S = (1 + 1 + 0.375) * 0.4  # walking step 1 of the time-projection gait, 3/8 through
+RECORD_EVERY = 10
+
+
+def walk_record(state):
+    """What the shared walks save every 10 ticks (ground truth, the readings and the whole telemetry)."""
+    from mjx_coman import ground_truth as gt
+    from mjx_coman.sensors import model_ids
+
+    d = state.env.data
+    return dict(pelvis_m=gt.pelvis_m(d), com_m=gt.com_m(d), feet_m=gt.foot_points_world(d),
+                pelvis_quat=d.xquat[model_ids()["pelvis_body"]], telemetry=state.telemetry,
+                readings=state.env.readings)
+
+
+def probe_setting(ctrl) -> str:
+    """The tunable the gradient check differentiates: the first scalar one with a nonzero default."""
+    for s in ctrl.settings:
+        if s.tunable and isinstance(s.default, (int, float)) and not isinstance(s.default, bool) and s.default:
+            return s.name
+    raise AssertionError(f"{ctrl.name} declares no scalar tunable with a nonzero default")
+
+
+def grad_cost(saved):
+    """Mean horizontal CoM coordinate sum over the first GRAD_WINDOW_S of each walk (smooth, feet down)."""
+    n = int(round(GRAD_WINDOW_S / (0.002 * RECORD_EVERY)))
+    return saved["com_m"][:, :n, :2].sum(-1).mean(-1)
+
+
+def _families():
+    """``[(representative name, [its variant names])]`` of the registry, one per family."""
+    from mjx_coman import controllers
+
+    out = []
+    for n in controllers.names():
+        core = controllers.get(n).core()
+        for rep, members in out:
+            if controllers.get(rep).core() == core:
+                members.append(n)
+                break
+        else:
+            out.append((n, [n]))
+    return out
+
+
+def _rows(walking_env):
+    """Per family: the probe, its step h, and rows ``(name, push, seed, delta)``; all rows in one list."""
+    from mjx_coman import controllers, rollout as ro
+
+    back = ro.make_push(PUSH_START_S, 0.1, impulse_ns=5.0, direction_rad=np.pi)
+    absurd = ro.make_push(1.0, 0.05, force_n=[3e6, 0.0, 1e6])
+    rows, probes = [], {}
+    for rep, members in _families():
+        probe = probe_setting(controllers.get(rep))
+        h = 0.05 * abs(float(controllers.get(rep).defaults()[probe]))
+        probes[rep] = (probe, h)
+        rows += [(rep, None, 0, 0.0), (rep, None, 0, h), (rep, None, 0, -h), (rep, back, 7, 0.0), (rep, absurd, 7, 0.0)]
+        rows += [(m, None, 1, 0.0) for m in members[1:]]
+        rows += [(m, back, 7, 0.0) for m in members[1:] if m == "open-loop"]  # the push it cannot take
+    assert len(rows) <= WALK_ROWS, len(rows)
+    return rows, probes
+
+
+@pytest.fixture(scope="session")
+def walking_env():
+    from mjx_coman.rollout import walking_env_params
+
+    return walking_env_params()
+
+
+@pytest.fixture(scope="session")
+def shared_walks(walking_env):
+    """``(rows, results, cost, dcost, probes)`` of the one bundled batch (compiled and run once)."""
+    from mjx_coman import controllers, rollout as ro
+    from mjx_coman.controllers.bundle import bundle, bundle_config
+
+    fams = _families()
+    reps = [rep for rep, _ in fams]
+    member_of = {m: i for i, (_, ms) in enumerate(fams) for m in ms}
+    both = bundle([controllers.get(r) for r in reps])
+    rows, probes = _rows(walking_env)
+    rows = rows + [rows[0]] * (WALK_ROWS - len(rows))  # one batch size
+    defaults = [controllers.default_config(r) for r in reps]
+    configs, tangents = [], []
+    for name, _, _, delta in rows:
+        i = member_of[name]
+        probe = probes[reps[i]][0]
+        own = controllers.default_config(name)
+        if delta:
+            own = own.replace(**{probe: getattr(own, probe) + delta})
+        cfgs = [own if j == i else defaults[j] for j in range(len(reps))]
+        configs.append(bundle_config(i, cfgs))
+        zero = jax.tree_util.tree_map(np.zeros_like, bundle_config(i, cfgs))
+        tangents.append(zero.replace(configs=tuple(
+            c.replace(**{probes[r][0]: np.ones_like(getattr(c, probes[r][0]))}) for c, r in zip(zero.configs, reps))))
+    stack = lambda xs: jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(x) for x in a]), *xs)  # noqa: E731
+    pushes = stack([p if p is not None else ro.no_push() for _, p, _, _ in rows])
+    keys = np.stack([np.asarray(jax.random.PRNGKey(s)) for _, _, s, _ in rows])
+    spec, save, joy = ro.WalkSpec(seconds=WALK_S), ro.SaveAt(walk_record, every=RECORD_EVERY), controllers.joystick()
+
+    def batch(cfg):
+        r = jax.vmap(lambda c, p, k: ro.walk(both.core(), c, walking_env, p, k, spec, joy, save))(cfg, pushes, keys)
+        return r, grad_cost(r.saved)
+
+    tangent = stack(tangents)
+    tangent = tangent.replace(index=np.zeros(WALK_ROWS, jax.dtypes.float0))
+    (res, cost), (_, dcost) = jax.jit(lambda c, t: jax.jvp(batch, (c,), (t,)))(stack(configs), tangent)
+    return rows, jax.tree_util.tree_map(np.asarray, res), np.asarray(cost), np.asarray(dcost), probes
+
+
+class FamilyBatch(NamedTuple):
+    """The shared batch seen from one family: ``rows[sel]`` are its unperturbed, +h and -h walks of the
+    gradient check; ``member`` indexes its part of the bundle (``telemetry.extra[member]``)."""
+
+    rows: list
+    res: object
+    cost: np.ndarray
+    dcost: np.ndarray
+    probe: str
+    h: float
+    sel: tuple
+    member: int
+
+
+@pytest.fixture(scope="session")
+def family_walks(shared_walks):
+    """``family_walks(name) -> FamilyBatch`` of the shared batch, for ``name``'s family."""
+    from mjx_coman import controllers
+
+    rows, res, cost, dcost, probes = shared_walks
+
+    def get(name):
+        core = controllers.get(name).core()
+        member, rep = next((j, r) for j, r in enumerate(probes) if controllers.get(r).core() == core)
+        i0 = next(i for i, (n, p, _, d) in enumerate(rows) if n == rep and p is None and d == 0.0)
+        probe, h = probes[rep]
+        return FamilyBatch(rows, res, cost, dcost, probe, h, (i0, i0 + 1, i0 + 2), member)
+
+    return get

@@ -1,7 +1,7 @@
-"""Tests of mjx_coman.walking.rollout: walks of the simulated COMAN from the crouched stance.
+"""Tests of mjx_coman.rollout: walks of the simulated COMAN under a controller, judged on ground truth.
 
-The fast tests share one compiled, vmapped 2 s walk (module fixture); the
-long ones (10 s walks, speeds, a 64-walk batch) are marked slow.
+The walks come from the shared family batch (``family_walks`` in conftest: 2.4 s, one compilation
+per family); the long ones (10 s walks, speeds, a 64-walk batch) are marked slow.
 """
 
 from __future__ import annotations
@@ -13,83 +13,72 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mjx_coman import controllers
+from mjx_coman import rollout as ro
 from mjx_coman.env import batch_axes
-from mjx_coman.walking import controller as ctl
-from mjx_coman.walking import rollout as ro
 
-SHORT_S = 2.4  # start-up phase + 5 walking phases (4 phase changes)
-EST_TOL_M = 6e-3  # encoders (12 bit) + IMU noise against the simulator's truth
 STANDING_PELVIS_M = 0.507
-PUSH_NS = 5.0  # backward impulse that the open loop does not survive at this phase
-PUSH_START_S = (1 + 1 + 0.375) * 0.4  # walking phase 1, 3/8 through
-
-
-def _stack(items):
-    return jax.tree_util.tree_map(lambda *x: jnp.stack(x), *items)
-
-
-@pytest.fixture(scope="module")
-def env_params():
-    return ro.walking_env_params()
-
-
-@pytest.fixture(scope="module")
-def short_walks(env_params):
-    """Five 2.4 s walks in one vmap: closed/open loop unpushed, closed/open loop pushed, an absurd push."""
-    closed = ctl.make_controller_params(env_params, 0.0)
-    opened = ctl.make_controller_params(env_params, 0.0, footstep_gain=0.0)
-    push = ro.make_push(PUSH_START_S, 0.1, impulse_ns=PUSH_NS, direction_rad=math.pi)
-    absurd = ro.make_push(1.0, 0.05, force_n=[3e6, 0.0, 1e6])
-    cps = _stack([closed, opened, closed, opened, closed])
-    pushes = _stack([ro.no_push(), ro.no_push(), push, push, absurd])
-    keys = jax.random.split(jax.random.PRNGKey(7), 5)
-    spec = ro.WalkSpec(seconds=SHORT_S, record_every=10)
-    res = ro.batched_walk(spec, None, 0)(env_params, cps, pushes, keys)
-    return jax.tree_util.tree_map(np.asarray, res)
 
 
 def _one(res, i):
     return jax.tree_util.tree_map(lambda x: x[i], res)
 
 
-@pytest.mark.parametrize("i", [0, 1])
-def test_unpushed_walks_step_in_place_without_falling(short_walks, i):
-    r = _one(short_walks, i)
-    assert not r.fell and not r.nan and r.fall_time_s == np.inf
-    assert r.steps == 4 and r.steps_to_recover == 0
-    assert r.pelvis_m[:, 2].min() > STANDING_PELVIS_M - 0.03  # no collapse
-    assert np.abs(r.pelvis_m[-1, :2] - r.pelvis_m[0, :2]).max() < 0.15  # in place, within 15 cm
-    feet = r.footsteps_m[:r.steps + 1]
-    assert np.all(np.isfinite(feet)) and np.all(np.isnan(r.footsteps_m[r.steps + 1:]))
-    # stance feet alternate right (phase 0), left, right, ...; about a step width apart
-    np.testing.assert_array_equal(np.sign(feet[:, 1]), [-1, 1, -1, 1, -1])
-    assert np.all(np.abs(np.diff(feet[:, 1])) > 0.1) and np.all(np.abs(np.diff(feet[:, 1])) < 0.2)
+def _row(rows, name, pushed: bool, delta=0.0):
+    return next(i for i, (n, p, _, d) in enumerate(rows) if n == name and (p is not None) == pushed and d == delta)
+
+
+@pytest.fixture(scope="module")
+def tp(family_walks):
+    return family_walks("time-projection")
+
+
+@pytest.mark.parametrize("name", ["time-projection", "open-loop"])
+def test_unpushed_walks_step_in_place_without_falling(tp, name):
+    rows, res = tp[0], tp[1]
+    r = _one(res, _row(rows, name, False))
+    assert not r.fell and not r.nan and r.fall_time_s == np.inf and r.steps_to_recover == 0
+    pel = r.saved["pelvis_m"]
+    assert pel[:, 2].min() > STANDING_PELVIS_M - 0.03  # no collapse
+    assert np.abs(pel[-1, :2] - pel[0, :2]).max() < 0.15  # in place, within 15 cm
+    k = int(r.touchdowns)
+    assert k >= 5  # the swing feet land every 0.4 s after the start-up phase
+    feet = r.log.foot_m[:k]
+    assert np.all(np.isfinite(feet)) and np.all(np.isnan(r.log.foot_m[k:]))
+    walking = r.log.time_s[:k] > 0.6  # after the start-up phase: left, right, left, ...
+    foot = r.log.foot[:k][walking]
+    assert np.all(np.diff(foot) != 0) and foot[0] == 0
     np.testing.assert_allclose(feet[:, 2], 0.09, atol=0.015)  # foot points 9 cm above the floor: landed
+    lateral = feet[walking, 1]
+    assert np.all(np.sign(lateral) == np.where(foot == 0, 1, -1))
 
 
-def test_state_estimate_matches_the_simulator(short_walks):
-    for i in (0, 1):
-        tr = _one(short_walks, i).trace
-        err = np.abs(tr.measured_rel_m - tr.true_rel_m)
-        assert err.max() < EST_TOL_M, err.max(axis=0)
-
-
-def test_closed_loop_recovers_a_push_the_open_loop_does_not(short_walks):
-    closed, opened = _one(short_walks, 2), _one(short_walks, 3)
+def test_the_closed_loop_recovers_a_push_the_open_loop_does_not(tp):
+    rows, res = tp[0], tp[1]
+    closed, opened = _one(res, _row(rows, "time-projection", True)), _one(res, _row(rows, "open-loop", True))
+    push = rows[_row(rows, "open-loop", True)][1]
+    assert rows[_row(rows, "time-projection", True)][1] is push  # the same push
+    start = float(push.start_s)
     assert not closed.fell
-    assert opened.fell and PUSH_START_S < opened.fall_time_s <= SHORT_S
+    assert opened.fell and start < opened.fall_time_s <= float(opened.time_s[-1])
     assert closed.max_abs_footstep_adjustment_m > 0.03 and opened.max_abs_footstep_adjustment_m == 0.0
     # it steps backward: the pelvis ends behind where it was pushed
-    assert closed.pelvis_m[-1, 0] < closed.pelvis_m[int(PUSH_START_S / 0.02), 0]
+    i_push = int(start / 0.02)
+    assert closed.saved["pelvis_m"][-1, 0] < closed.saved["pelvis_m"][i_push, 0]
+    assert opened.steps_to_recover == -1
 
 
-def test_a_blow_up_is_a_recorded_fall_and_stays_finite(short_walks):
-    r = _one(short_walks, 4)
+def test_a_blow_up_is_a_recorded_fall_and_stays_finite(tp):
+    rows, res = tp[0], tp[1]
+    i = next(i for i, (_, p, _, _) in enumerate(rows) if p is not None and float(jnp.abs(p.force_n).max()) > 1e5)
+    r = _one(res, i)
     assert r.fell and 1.0 < r.fall_time_s < 1.1 and r.steps_to_recover == -1
-    for x in (r.pelvis_m, r.time_s, r.mean_speed_mps, r.max_abs_footstep_adjustment_m, *r.trace):
+    for x in (r.saved["pelvis_m"], r.time_s, r.mean_speed_mps, r.max_abs_footstep_adjustment_m):
         assert np.all(np.isfinite(x))
     frozen = r.time_s > r.fall_time_s + 0.02
-    assert np.all(r.pelvis_m[frozen] == r.pelvis_m[frozen][0])  # frozen at the last good state
+    pel = r.saved["pelvis_m"]
+    assert np.all(pel[frozen] == pel[frozen][0])  # frozen at the last good state
+    assert np.all(r.log.time_s[: int(r.touchdowns)] <= r.fall_time_s)  # nothing logged after the fall
 
 
 @pytest.mark.parametrize("kwargs, name", [
@@ -110,22 +99,38 @@ def test_make_push_from_impulse():
     np.testing.assert_allclose(p.force_n, [0.0, 40.0, 0.0], atol=1e-5)
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(controller="closed-loop"), "controller"),
-    (dict(seconds=0.0), "seconds"),
-    (dict(record_every=0), "record_every"),
-    (dict(speed_mps=1.0), "speed_mps"),
-    (dict(max_tilt_rad=-1.0), "max_tilt_rad"),
-])
+@pytest.mark.parametrize("kwargs, name", [(dict(seconds=0.0), "seconds"), (dict(seconds=float("inf")), "seconds")])
 def test_walk_spec_rejects_bad_values(kwargs, name):
     with pytest.raises(ValueError, match=name):
         ro.WalkSpec(**kwargs).validate()
 
 
-def test_walk_rejects_a_step_time_other_than_the_controllers(env_params):
-    cp = ctl.make_controller_params(env_params, 0.0)
-    with pytest.raises(ValueError, match="step_time_s"):
-        ro.walk(env_params, cp, ro.no_push(), ro.WalkSpec(step_time_s=0.5), jax.random.PRNGKey(0))
+def test_the_rollout_refuses_a_privileged_controller_unless_allowed(walking_env):
+    ctrl, cfg = controllers.load("joint-pd")
+    spy = ctrl._replace(name="spy", privileged=True)
+    with pytest.raises(ValueError, match="ground truth"):
+        ro.walk(spy, cfg, walking_env, ro.no_push(), jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match="ground truth"):
+        ro.jit_walk(spy)
+
+
+def test_the_rollout_refuses_another_control_period_and_a_joystick_beyond_the_controller(walking_env):
+    import dataclasses
+
+    ctrl, cfg = controllers.load("time-projection")
+    slow = dataclasses.replace(walking_env, n_substeps=4)  # a 4 ms control tick
+    with pytest.raises(ValueError, match="control period"):
+        ro.walk(ctrl, cfg, slow, ro.no_push(), jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match="forward_mps"):
+        ro.walk(ctrl, cfg, walking_env, ro.no_push(), jax.random.PRNGKey(0), joystick=controllers.joystick(0.5))
+    with pytest.raises(ValueError, match="lateral_mps"):
+        ro.walk(ctrl, cfg, walking_env, ro.no_push(), jax.random.PRNGKey(0),
+                joystick=controllers.joystick(0.0, 0.1))
+
+
+def test_ticks_round_up_to_whole_records():
+    assert ro.n_ticks(ro.WalkSpec(seconds=1.0), 0.002) == 500
+    assert ro.n_ticks(ro.WalkSpec(seconds=1.001), 0.002, ro.SaveAt(ro.pelvis_and_com, every=10)) == 510
 
 
 def test_walking_env_params_rejects_a_bad_gain():
@@ -135,31 +140,35 @@ def test_walking_env_params_rejects_a_bad_gain():
 
 # --- long runs -------------------------------------------------------------------------------------
 
+def _stack(items):
+    return jax.tree_util.tree_map(lambda *x: jnp.stack(x), *items)
+
+
 @pytest.mark.slow
-def test_ten_seconds_in_place_open_and_closed_loop(env_params):
+def test_ten_seconds_in_place_open_and_closed_loop(walking_env):
     """Seed Figure 14: 10 s of in-place walking (25 phases) open and closed loop without falling."""
-    cps = _stack([ctl.make_controller_params(env_params, 0.0),
-                  ctl.make_controller_params(env_params, 0.0, footstep_gain=0.0)])
-    spec = ro.WalkSpec(seconds=10.4, record_every=50)
-    res = jax.tree_util.tree_map(np.asarray, ro.batched_walk(spec, None, 0)(
-        env_params, cps, _stack([ro.no_push()] * 2), jax.random.split(jax.random.PRNGKey(1), 2)))
-    assert not res.fell.any() and np.all(res.steps == 24)  # 25 walking phases after the start-up one
-    assert np.all(np.abs(res.mean_speed_mps) < 0.1)  # in place it drifts forward at about 0.06 m/s
+    ctrl = controllers.get("time-projection")
+    cfgs = _stack([controllers.default_config("time-projection"), controllers.default_config("open-loop")])
+    fn = ro.batched_walk(ctrl, ro.WalkSpec(seconds=10.4), config_axes=0)
+    res = jax.tree_util.tree_map(np.asarray, fn(cfgs, walking_env, _stack([ro.no_push()] * 2),
+                                                jax.random.split(jax.random.PRNGKey(1), 2), controllers.joystick()))
+    assert not res.fell.any() and np.all(res.touchdowns >= 25)
+    assert np.all(np.abs(res.mean_speed_mps) < 0.1)  # in place it drifts forward at about 0.07 m/s
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("speed", [0.1, 0.2])
-def test_walking_speed_within_a_quarter_of_the_command(env_params, speed):
-    """Seed Figure 19: the same controller walks at the 3LP gait's speed."""
-    cp = ctl.make_controller_params(env_params, speed)
-    res = ro.jit_walk(env_params, cp, ro.no_push(), ro.WalkSpec(seconds=10.4, record_every=50),
-                      jax.random.PRNGKey(2))
+def test_walking_speed_within_a_quarter_of_the_command(walking_env, speed):
+    """Seed Figure 19: the same controller walks at the 3LP gait's speed (the speed is the joystick's)."""
+    ctrl, cfg = controllers.load("time-projection")
+    res = ro.jit_walk(ctrl, ro.WalkSpec(seconds=10.4))(cfg, walking_env, ro.no_push(), jax.random.PRNGKey(2),
+                                                         controllers.joystick(speed))
     assert not bool(res.fell)
     assert abs(float(res.mean_speed_mps) - speed) < 0.25 * speed
 
 
 @pytest.mark.slow
-def test_a_batch_of_64_pushed_walks_in_one_vmap(env_params):
+def test_a_batch_of_64_pushed_walks_in_one_vmap(walking_env):
     """64 walks over push phase, impulse and direction, and per-walk spring stiffness, in one vmap on the CPU."""
     import dataclasses
 
@@ -169,15 +178,16 @@ def test_a_batch_of_64_pushed_walks_in_one_vmap(env_params):
     dirs = rng.choice([0.0, math.pi], n)
     pushes = _stack([ro.make_push((2 + p) * 0.4, 0.1, impulse_ns=i, direction_rad=d)
                      for p, i, d in zip(phases, imps, dirs)])
-    act = env_params.actuator
+    act = walking_env.actuator
     k = act.spring_stiffness_nm_per_rad * rng.uniform(0.9, 1.1, (n, 1)).astype(np.float32)
     batched = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), act)
     batched = dataclasses.replace(batched, spring_stiffness_nm_per_rad=jnp.asarray(k))
-    env_b = dataclasses.replace(env_params, actuator=batched,
+    env_b = dataclasses.replace(walking_env, actuator=batched,
                                 sensor=jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))),
-                                                              env_params.sensor))
-    spec = ro.WalkSpec(seconds=3.2, record_every=50)
-    res = jax.tree_util.tree_map(np.asarray, ro.batched_walk(spec, batch_axes(env_b))(
-        env_b, ctl.make_controller_params(env_params, 0.0), pushes, jax.random.split(jax.random.PRNGKey(3), n)))
-    assert res.fell.shape == (n,) and np.all(np.isfinite(res.pelvis_m))
+                                                              walking_env.sensor))
+    ctrl, cfg = controllers.load("time-projection")
+    fn = ro.batched_walk(ctrl, ro.WalkSpec(seconds=3.2), env_axes=batch_axes(env_b))
+    res = jax.tree_util.tree_map(np.asarray, fn(cfg, env_b, pushes, jax.random.split(jax.random.PRNGKey(3), n),
+                                                controllers.joystick()))
+    assert res.fell.shape == (n,) and np.all(np.isfinite(res.mean_speed_mps))
     assert not res.fell[imps < 1.0].any()  # gentle pushes never topple it

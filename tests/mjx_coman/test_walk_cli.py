@@ -14,7 +14,7 @@ import pytest
 from mjx_coman import walk as cli
 
 
-SECONDS = "4"  # keep equal to tests/mjx_coman/walking/test_notebook_03.py (one shared compilation)
+SECONDS = "4"  # keep equal to tests/mjx_coman/test_notebook_03.py (one shared compilation)
 
 
 def _run(*args, timeout=600, env=None):
@@ -24,13 +24,15 @@ def _run(*args, timeout=600, env=None):
 
 @pytest.fixture
 def no_build(monkeypatch):
-    """Fail loudly if a bad argument got as far as building the environment."""
+    """Fail loudly if a bad argument got as far as building the environment or walking."""
     import mjx_coman.env
+    import mjx_coman.rollout
 
     def boom(*a, **k):
         raise AssertionError("built the environment before validating the arguments")
 
     monkeypatch.setattr(mjx_coman.env, "make_env_params", boom)
+    monkeypatch.setattr(mjx_coman.rollout, "jit_walk", boom)
 
 
 @pytest.mark.parametrize(
@@ -41,7 +43,14 @@ def no_build(monkeypatch):
         (["--seconds", "nan"], "--seconds"),
         (["--speed", "0.5"], "--speed"),
         (["--speed", "fast"], "--speed"),
+        (["--speed", "0.1", "--controller", "joint-pd"], "--speed"),
         (["--controller", "mpc"], "mpc"),
+        (["--controller", "nope"], "time-projection"),  # the known names are listed
+        (["--set", "zeta"], "KEY=VALUE"),
+        (["--set", "bogus=1"], "bogus"),
+        (["--set", "hip_attack=2"], "hip_attack"),
+        (["--set", "window=1.5"], "window"),
+        (["--controller", "joint-pd", "--set", "zeta=0.2"], "zeta"),
         (["--push-phase", "1.0"], "--push-phase"),
         (["--push-phase", "-0.1"], "--push-phase"),
         (["--push-ns", "-3"], "--push-ns"),
@@ -50,6 +59,7 @@ def no_build(monkeypatch):
         (["--push-step", "-1"], "--push-step"),
         (["--push-ns", "4", "--push-step", "30", "--seconds", "2"], "--push-step"),
         (["--seed", "-2"], "--seed"),
+        (["--seed", str(2**64)], "--seed"),
         (["--plot", "out.txt"], "--plot"),
         (["--plot", "/no/such/dir/out.png"], "--plot"),
         (["--bogus"], "--bogus"),
@@ -69,6 +79,12 @@ def test_bad_argument_in_a_subprocess_is_one_line_and_fast():
     assert out.stderr.count("\n") == 1 and "--push-phase" in out.stderr
 
 
+def test_unknown_controller_in_a_subprocess_lists_the_known_names():
+    out = _run("--controller", "nope", timeout=120)
+    assert out.returncode == 2 and out.stdout == "" and out.stderr.count("\n") == 1
+    assert all(n in out.stderr for n in ("time-projection", "open-loop", "dlqr", "joint-pd"))
+
+
 def test_push_force_is_the_impulse_over_the_duration():
     assert cli.push_force_n(4.0, 0.1, "forward") == pytest.approx((40.0, 0.0, 0.0))
     assert cli.push_force_n(2.0, 0.2, "right") == pytest.approx((0.0, -10.0, 0.0))
@@ -77,22 +93,27 @@ def test_push_force_is_the_impulse_over_the_duration():
 
 @pytest.fixture(scope="module")
 def short_walk(tmp_path_factory):
-    pytest.importorskip("mjx_coman.walking.rollout")
     png = tmp_path_factory.mktemp("walk") / "walk.png"
     # JAX's persistent compilation cache, shared with the notebook 03 test (the same compiled walk)
     env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(tmp_path_factory.getbasetemp() / "jax_compile_cache"))
-    out = _run("--speed", "0.0", "--seconds", SECONDS, "--controller", "closed-loop", "--plot", str(png), "--json",
-               env=env)
+    out = _run("--speed", "0.0", "--seconds", SECONDS, "--controller", "closed-loop", "--set", "hip_attack=0.7",
+               "--push-ns", "3", "--push-step", "1", "--push-phase", "0.35", "--push-dir", "backward",
+               "--plot", str(png), "--json", env=env)
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout), png
 
 
-def test_short_walk_reports_steps_and_stays_up(short_walk):
+def test_short_walk_reports_ground_truth_and_stays_up(short_walk):
     report, png = short_walk
-    for key in ("fell", "mean_speed_mps", "steps", "steps_to_recover", "max_abs_footstep_adjustment_m", "nan"):
+    for key in ("controller", "settings", "fell", "mean_speed_mps", "touchdowns", "steps_to_recover",
+                "max_abs_footstep_adjustment_m", "nan", "push"):
         assert key in report
+    assert report["controller"] == "time-projection" and report["settings"] == {"hip_attack": 0.7}
     assert report["fell"] is False and report["nan"] is False
-    assert report["steps"] >= 8  # 4 s: the start-up phase, then walking steps 0..8
-    assert abs(report["mean_speed_mps"]) < 0.1  # in place
-    assert report["steps_to_recover"] is None  # no push
+    assert report["touchdowns"] >= 8  # 4 s: the start-up phase, then a touchdown every 0.4 s
+    assert abs(report["mean_speed_mps"]) < 0.15  # in place
+    assert report["push"]["start_s"] == pytest.approx((1 + 1 + 0.35) * 0.4)
+    s2r = report["steps_to_recover"]
+    assert s2r is None or 1 <= s2r <= report["touchdowns"]  # ground truth: touchdowns after the push ends
+    assert report["max_abs_footstep_adjustment_m"] > 0.0
     assert png.stat().st_size > 10_000

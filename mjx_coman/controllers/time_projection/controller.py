@@ -1,7 +1,9 @@
-"""The closed-loop walking controller of the simulated COMAN (seed 000, Figure 3).
+"""The time-projection walking controller of the simulated COMAN (seed 000, Figure 3).
 
-One pure ``init``/``step`` pair; ``step`` maps the sensor readings of a 2 ms
-tick to the motor position targets of :class:`mjx_coman.env.Command`:
+One pure ``init``/``step`` pair of the controller interface
+(:mod:`mjx_coman.controllers.base`); ``step`` maps the sensor readings of a
+2 ms tick and the joystick's forward speed to the motor position targets of
+:class:`mjx_coman.env.Command`:
 
 1. **Phase clock**: fixed timing, a phase change every ``T = 0.4 s`` (the seed
    "decided to keep a fixed timing instead of a phase-based control"); no
@@ -24,7 +26,7 @@ tick to the motor position targets of :class:`mjx_coman.env.Command`:
    makes the body fall forward and walk off at about 0.1 m/s).
 3. **Estimation**: link encoders + IMU -> relative pelvis/feet positions ->
    IIR (eq. 26) -> velocities -> error ``e`` (eq. 15)
-   (:mod:`mjx_coman.walking.estimation`), sagittal error through the smooth
+   (:mod:`~mjx_coman.controllers.time_projection.estimation`), sagittal error through the smooth
    dead-zones (eq. 27).
 4. **Footstep adjustment**: table B of Figure 13 (``jaxlp.projection``): the
    final swing-foot adjustment ``Delta = b(t) . e`` relative to the pelvis,
@@ -38,7 +40,7 @@ tick to the motor position targets of :class:`mjx_coman.env.Command`:
    at the crouched height) straightens the knee, and at the start of the
    swing after a forward push that pushes the trailing, still loaded foot
    into the ground instead of lifting it: the closed loop then recovered
-   5 N s at every phase instead of 6-7 (see :mod:`mjx_coman.walking.experiments`).
+   5 N s at every phase instead of 6-7.
    On the hip the attack angle moves the foot by ``l sin(angle)`` (crouched
    leg ``l = 0.417 m``) and lifts it by ``l (1 - cos angle)``.
 5. **Adaptive lift and foot orientation** (eq. 28-30): ``theta_hat =
@@ -58,12 +60,13 @@ tick to the motor position targets of :class:`mjx_coman.env.Command`:
    it throws the body over every adjusted footstep, which turned the time
    projection's corrections into a forward walk of 0.3 m/s in place.
 
-Controllers (static ``controller`` argument of :func:`step`):
-``"time-projection"`` (the closed loop), ``"no-deadzone"`` (the same without
-eq. 27), ``"dlqr"`` (the adjustment of table B at the phase start, i.e. of the
-DLQR law, held for the phase: the seed's baseline) and ``"open-loop"`` (no
-footstep adjustment; adaptive lift and orientation feedback stay on, as in
-the seed's Figure 18).
+Variants are configurations of the same compiled step (registered in
+:mod:`mjx_coman.controllers`): ``time-projection`` (the closed loop),
+``no-deadzone`` (thresholds of 1e-7: eq. 27 then shifts the error by at most
+1e-7), ``dlqr`` (``hold_adjustment = 1``: the adjustment of table B at the
+phase start, i.e. of the DLQR law, held for the phase: the seed's baseline)
+and ``open-loop`` (``footstep_gain = 0``: no footstep adjustment; adaptive
+lift and orientation feedback stay on, as in the seed's Figure 18).
 """
 
 from __future__ import annotations
@@ -74,21 +77,10 @@ import jax
 import jax.numpy as jnp
 
 from jaxlp import filters
-from mjx_coman.env import Command
-from mjx_coman.sensors import Readings
-from mjx_coman.walking import estimation as est
-from mjx_coman.walking.controller_params import (  # noqa: F401 - re-exported
-    DEFAULT_ANKLE_COMPLIANCE,
-    DEFAULT_DEADZONE,
-    DEFAULT_KNEE_DEFLECTION_RAD,
-    DEFAULT_LEAN_S,
-    DEFAULT_PELVIS_OFFSET_M,
-    DEFAULT_STEP_WIDTH_M,
-    MAX_SPEED_MPS,
-    ControllerParams,
-    make_controller_params,
-)
-from mjx_coman.walking.open_loop import (
+from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Observation, Telemetry
+from mjx_coman.controllers.time_projection import estimation as est
+from mjx_coman.controllers.time_projection.config import Config
+from mjx_coman.controllers.time_projection.open_loop import (
     LEFT_HIP_PITCH,
     LEFT_KNEE,
     LEFT_LEG_INDEX,
@@ -100,10 +92,13 @@ from mjx_coman.walking.open_loop import (
     knee_compensation,
     targets_from_state,
 )
+from mjx_coman.env import Command
+from mjx_coman.sensors import Readings
 
-CONTROLLERS = ("time-projection", "no-deadzone", "dlqr", "open-loop")
 LEFT_ANKLE_PITCH = int(LEFT_LEG_INDEX[5])
 RIGHT_ANKLE_PITCH = int(RIGHT_LEG_INDEX[5])
+
+
 class ControllerState(NamedTuple):
     """The controller's memory (a pytree).
 
@@ -115,7 +110,7 @@ class ControllerState(NamedTuple):
         force_n: (2,) IIR-filtered foot normal forces (right, left), N (eq. 21).
         error: (2, 4) last filtered error (eq. 15), before the dead-zone.
         adjustment_m: footstep adjustment applied at the last tick (truncated), m.
-        held_m: the adjustment held by ``"dlqr"`` since the phase start, m.
+        held_m: the adjustment of the phase start (held when ``hold_adjustment = 1``), m.
     """
 
     tick: jax.Array
@@ -128,8 +123,27 @@ class ControllerState(NamedTuple):
     held_m: jax.Array
 
 
-def init(params: ControllerParams) -> ControllerState:
-    """The state at the crouched stance: the start-up phase (``step = -1``, ``d = -1``) begins."""
+class Extra(NamedTuple):
+    """The controller-specific part of the telemetry.
+
+    Attributes:
+        error: (2, 4) filtered error (eq. 15) per axis, before the dead-zone.
+        d: phase sign, +1 left swing, -1 right swing.
+        measured_rel_m: (2, 2) relative positions from encoders + IMU (unfiltered).
+        adjustment_m: sagittal footstep adjustment applied, m.
+    """
+
+    error: jax.Array
+    d: jax.Array
+    measured_rel_m: jax.Array
+    adjustment_m: jax.Array
+
+
+def init(params: Config, env_params=None, key=None) -> ControllerState:
+    """The state at the crouched stance: the start-up phase (``step = -1``, ``d = -1``) begins.
+
+    ``env_params`` and ``key`` (of the controller interface) are not used.
+    """
     f = params.zeta.dtype
     z = jnp.zeros((), f)
     return ControllerState(
@@ -139,44 +153,45 @@ def init(params: ControllerParams) -> ControllerState:
     )
 
 
-def speed_factor(params: ControllerParams, step) -> jax.Array:
+def speed_factor(params: Config, step) -> jax.Array:
     """Share of the commanded speed in phase ``step``: 0 in place, then a linear ramp to 1."""
     ramp = jnp.maximum(params.ramp_steps, 1.0)
     return jnp.clip((step - params.ramp_start_steps + 1.0) / ramp, 0.0, 1.0)
 
 
-def nominal_at(params: ControllerParams, tick, step, d, pelvis_offset_m=0.0) -> jax.Array:
+def nominal_at(params: Config, tick, step, d, speed_mps, pelvis_offset_m=0.0) -> jax.Array:
     """(2, 6) nominal 3LP state at ``tick`` of phase ``step`` (lateral axis signed by ``d``; eq. 10).
 
+    ``speed_mps`` is the commanded speed (ramped in by :func:`speed_factor`);
     ``pelvis_offset_m`` moves the nominal pelvis forward (sagittal), m.
     """
-    v = params.speed_mps * speed_factor(params, step)
+    v = speed_mps * speed_factor(params, step)
     q = params.nominal_base[tick] + v * params.nominal_per_mps[tick]
     q = q * jnp.stack([jnp.ones_like(d), d])[:, None]
     return q.at[0, 1].add(pelvis_offset_m)
 
 
-def footstep_block(params: ControllerParams, tick, error_sag, held_m, controller: str):
-    """Footstep adjustment of table B (Figure 13), truncated at ``truncation_m``.
+def footstep_block(params: Config, tick, error_sag, held_m):
+    """Footstep adjustment of table B (Figure 13), truncated at ``max_adjustment_m``.
+
+    The fresh time projection ``b(t) . e`` of this tick is blended with the
+    adjustment of the phase start by ``hold_adjustment`` (1: the DLQR law held
+    for the phase).
 
     Returns:
-        ``(adjustment_m, held_m)``: the adjustment to apply now and the DLQR hold.
+        ``(adjustment_m, held_m)``: the adjustment to apply now and the phase start's.
     """
     k = jnp.minimum(tick, params.ticks_per_step - 1)
     fresh = params.footstep_table[k] @ error_sag
     held = jnp.where(tick == 0, fresh, held_m)
-    if controller == "dlqr":
-        raw = held
-    elif controller == "open-loop":
-        raw = jnp.zeros_like(fresh)
-    else:
-        raw = fresh
+    raw = params.hold_adjustment * held + (1.0 - params.hold_adjustment) * fresh
     angle = filters.footstep_to_attack_angle(params.footstep_gain * raw, params.h1_m)
-    angle = jnp.clip(angle, -params.truncation_m / params.h1_m, params.truncation_m / params.h1_m)
+    limit = params.max_adjustment_m / params.h1_m
+    angle = jnp.clip(angle, -limit, limit)
     return angle * params.h1_m, held
 
 
-def lift_block(params: ControllerParams, t_s, error_sag, adjustment_m):
+def lift_block(params: Config, t_s, error_sag, adjustment_m):
     """Adaptive lift (eq. 28-29) and foot orientation feedback (eq. 30).
 
     Returns:
@@ -188,7 +203,7 @@ def lift_block(params: ControllerParams, t_s, error_sag, adjustment_m):
     return lift, -params.foot_pitch_gain * theta, theta
 
 
-def joint_targets_block(params: ControllerParams, q_nominal, t_s, d, adjustment_m, extra_lift_m,
+def joint_targets_block(params: Config, q_nominal, t_s, d, adjustment_m, extra_lift_m,
                         swing_pitch_rad, pelvis_shift_m=None, walking=1.0, stance_shift_m=None) -> jax.Array:
     """(23,) desired joint angles: 3LP targets + lifts + footstep adjustment -> IK (Figure 3, A-B).
 
@@ -219,7 +234,7 @@ def joint_targets_block(params: ControllerParams, q_nominal, t_s, d, adjustment_
     return q.at[RIGHT_HIP_PITCH].add((left - 1.0) * attack).at[RIGHT_ANKLE_PITCH].add((1.0 - left) * attack)
 
 
-def motor_targets_block(params: ControllerParams, q_des, t_s, d, force_n, readings: Readings,
+def motor_targets_block(params: Config, q_des, t_s, d, force_n, readings: Readings,
                         walking=1.0) -> jax.Array:
     """Knee compensation (eq. 21) and the position form of the hip switch (eq. 24): (23,) motor targets.
 
@@ -250,21 +265,22 @@ def motor_targets_block(params: ControllerParams, q_des, t_s, d, force_n, readin
     return q.at[stance_ankle].set(blended)
 
 
-def step(params: ControllerParams, state: ControllerState, readings: Readings,
-         controller: str = "time-projection") -> tuple[ControllerState, Command]:
-    """One control tick: readings -> motor position targets (seed 000, Figure 3).
+def step(params: Config, state: ControllerState, obs: Observation
+         ) -> tuple[ControllerState, Command, Telemetry]:
+    """One control tick: readings and commanded speed -> motor position targets (seed 000, Figure 3).
 
     Args:
-        params: controller parameters.
+        params: the config.
         state: controller memory.
-        readings: this tick's sensor readings (``EnvState.readings``).
-        controller: static, one of :data:`CONTROLLERS`.
+        obs: this tick's observation (readings; ``joystick.forward_mps`` is the speed).
 
     Returns:
-        The new state and the :class:`mjx_coman.env.Command` (position mode, zero torso force).
+        The new state, the :class:`mjx_coman.env.Command` (position mode, zero
+        torso force) and the :class:`~mjx_coman.controllers.base.Telemetry`
+        (``extra``: :class:`Extra`).
     """
-    if controller not in CONTROLLERS:
-        raise ValueError(f"unknown controller {controller!r}; choose one of {', '.join(CONTROLLERS)}")
+    readings = obs.readings
+    speed = obs.joystick.forward_mps
     n = params.ticks_per_step
     swap = state.tick >= n
     d = jnp.where(swap, -state.d, state.d)
@@ -276,15 +292,13 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
 
     walking = (step_idx >= 0).astype(d.dtype)
     ramp_in = walking + (1.0 - walking) * 0.5 * (1.0 - jnp.cos(jnp.pi * t / params.step_time_s))
-    lean = params.lean_s * params.speed_mps * speed_factor(params, step_idx)
+    lean = params.lean_s * speed * speed_factor(params, step_idx)
     offset = (params.pelvis_offset_m + lean) * ramp_in
-    q_nom = nominal_at(params, tick, step_idx, d, offset)
+    q_nom = nominal_at(params, tick, step_idx, d, speed, offset)
     raw = est.measure_relative(readings, d)
     filt, e = est.estimator_step(filt, raw, q_nom, d, params.zeta, params.dt_s)
-    err = e.error[0]
-    if controller != "no-deadzone":
-        err = filters.smooth_deadzone(err, params.deadzone)
-    adj, held = footstep_block(params, tick, err, state.held_m, controller)
+    err = filters.smooth_deadzone(e.error[0], params.deadzone)
+    adj, held = footstep_block(params, tick, err, state.held_m)
     adj = walking * adj
     previous = jnp.where(swap, 0.0, state.adjustment_m)  # a new swing leg starts from its nominal target
     alpha = params.dt_s / (params.adjustment_tau_s + params.dt_s)
@@ -299,11 +313,26 @@ def step(params: ControllerParams, state: ControllerState, readings: Readings,
     target = motor_targets_block(params, q_des, t, d, force, readings, walking)
     new = ControllerState(tick=tick + 1, step=step_idx, d=d, filt=filt, force_n=force, error=e.error,
                           adjustment_m=adj, held_m=held)
-    return new, Command(target.astype(readings.motor_angle_rad.dtype), jnp.zeros(3, target.dtype),
-                        jnp.asarray(False))
+    command = Command(target.astype(readings.motor_angle_rad.dtype), jnp.zeros(3, target.dtype), jnp.asarray(False))
+    return new, command, telemetry(params, tick, step_idx, d, speed, adj, e, raw)
+
+
+def telemetry(params: Config, tick, step_idx, d, speed_mps, adjustment_m, estimate: est.Estimate, raw_m
+              ) -> Telemetry:
+    """The common telemetry: support, phase, planned landing (nominal + adjustment), estimated pelvis state."""
+    end = nominal_at(params, params.ticks_per_step, step_idx, d, speed_mps)
+    landing = (end[:, 0] - end[:, 2]) * (step_idx >= 0)  # nominal swing - stance at the phase end
+    adj = jnp.stack([adjustment_m, jnp.zeros_like(adjustment_m)])
+    support = jnp.where(step_idx < 0, SUPPORT_DOUBLE, jnp.where(d > 0, SUPPORT_RIGHT, SUPPORT_LEFT))
+    return Telemetry(
+        support=support.astype(jnp.int32), step=step_idx, phase=tick.astype(d.dtype) / params.ticks_per_step,
+        next_footstep_m=landing + adj, footstep_adjustment_m=adj,
+        com_m=estimate.pos_m[:, 1], com_vel_mps=estimate.vel_mps[:, 1],
+        extra=Extra(error=estimate.error, d=d, measured_rel_m=raw_m, adjustment_m=adjustment_m),
+    )
 
 
 __all__ = [
-    "CONTROLLERS", "ControllerParams", "ControllerState", "make_controller_params", "init", "step",
+    "Config", "ControllerState", "Extra", "init", "step", "telemetry",
     "nominal_at", "footstep_block", "lift_block", "joint_targets_block", "motor_targets_block", "speed_factor",
 ]

@@ -37,7 +37,7 @@ from jaxlp import filters
 from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, feet_in_frame, quat_to_rot, rot_z
 from mjx_coman.sensors import Readings
-from mjx_coman.walking.open_loop import LEFT_LEG_INDEX, RIGHT_LEG_INDEX
+from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG_INDEX, RIGHT_LEG_INDEX
 
 LEFT_KNEE = JOINT_INDEX["LKneeSag"]
 RIGHT_KNEE = JOINT_INDEX["RKneeSag"]
@@ -119,13 +119,6 @@ def true_feet(data, foot_body_ids: tuple[int, int], pelvis_body_id: int) -> tupl
         foot = jnp.asarray(data.xpos[b]) + jnp.asarray(data.xmat[b]).reshape(3, 3) @ offset
         out.append(to_heading @ (foot - pelvis))
     return out[0], out[1]
-
-
-def foot_points_world(data, foot_body_ids: tuple[int, int]) -> jax.Array:
-    """(2, 3) world positions of the (left, right) foot points."""
-    xpos, xmat = jnp.asarray(data.xpos), jnp.asarray(data.xmat)
-    offset = jnp.asarray(FOOT_POINT_OFFSET_M, xpos.dtype)
-    return jnp.stack([xpos[b] + xmat[b].reshape(3, 3) @ offset for b in foot_body_ids])
 
 
 def estimator_init(window: int = VELOCITY_WINDOW, dtype=jnp.float32) -> filters.FilterState:

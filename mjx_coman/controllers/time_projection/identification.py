@@ -29,10 +29,10 @@ indexing). :func:`knee_load_moment_nm` is the physics check: the moment of the
 measured ground reaction (ankle F/T) and of the lower-leg weight about each
 knee axis, which a static spring must balance, so ``deflection ~ moment / k``.
 
-:func:`open_loop_walk` records the open-loop in-place walk at every tick
-(:func:`mjx_coman.walking.rollout.walk`); :func:`identify_deadzones` and
-:func:`identify_knee_deflection` are the host-side entry points (pass the same
-recorded walk to both to walk once).
+:func:`identify_deadzones` and :func:`identify_knee_deflection` fit a walk
+recorded at every tick with ``SaveAt(trace.trace, every=1)``
+(``mjx_coman.seed000.open_loop_walk`` records the seed's open-loop in-place
+walk; pass the same recording to both).
 """
 
 from __future__ import annotations
@@ -298,82 +298,41 @@ def phase_index_from_sign(d) -> jax.Array:
     return jnp.concatenate([jnp.zeros((1,), jnp.int32), jnp.cumsum(d[1:] != d[:-1]).astype(jnp.int32)])
 
 
-def open_loop_walk(env_params, ctrl_params=None, *, seconds: float = 10.0, seed: int = 0):
-    """Record the open-loop in-place walk every tick (host function; jits :func:`~mjx_coman.walking.rollout.walk`).
-
-    Seed 000 identifies both the dead-zones and the knee deflections on this
-    gait: speed 0, no footstep adjustment (adaptive lift and foot orientation
-    feedback on). Pass the result to both :func:`identify_deadzones` and
-    :func:`identify_knee_deflection` to walk once.
-
-    Args:
-        env_params: the environment.
-        ctrl_params: controller parameters (default ``make_controller_params(env_params, 0.0)``);
-            the speed is forced to 0.
-        seconds: duration, s (seed: 10 s, 25 steps).
-        seed: PRNG seed (sensor noise).
-
-    Returns:
-        The :class:`~mjx_coman.walking.rollout.WalkResult` with a trace at every tick.
-    """
-    from mjx_coman.walking.controller import make_controller_params
-    from mjx_coman.walking.rollout import WalkSpec, jit_walk, no_push
-
-    if not seconds > 0:
-        raise ValueError(f"seconds must be positive, got {seconds}")
-    if ctrl_params is None:
-        ctrl_params = make_controller_params(env_params, 0.0)
-    spec = WalkSpec(controller="open-loop", speed_mps=0.0, seconds=float(seconds), record_every=1,
-                    step_time_s=float(ctrl_params.ticks_per_step * ctrl_params.dt_s))
-    return jit_walk(env_params, ctrl_params, no_push(), spec, jax.random.PRNGKey(seed))
-
-
 def _walk_mask(result, settle_s: float, at_phase_change: bool = False) -> tuple[jax.Array, jax.Array]:
     if settle_s < 0:
         raise ValueError(f"settle_s must be non-negative, got {settle_s}")
     # After a fall the walk is frozen (its recorded time stops): use the nominal record times.
     t_rec = jnp.asarray(result.time_s)
     t = t_rec[0] * (jnp.arange(t_rec.shape[0]) + 1)
-    k = phase_index_from_sign(result.trace.d)
+    k = phase_index_from_sign(result.saved.d)
     return error_sample_mask(t, k, settle_s, t < result.fall_time_s, at_phase_change), k
 
 
-def identify_deadzones(env_params=None, ctrl_params=None, *, seconds: float = 10.0, settle_s: float = 2.0,
-                       seed: int = 0, at_phase_change: bool = False, result=None) -> DeadzoneFit:
-    """Dead-zone thresholds from an open-loop in-place walk (seed 000, Figure 9).
+def identify_deadzones(result, *, settle_s: float = 2.0, at_phase_change: bool = False) -> DeadzoneFit:
+    """Dead-zone thresholds from a recorded open-loop in-place walk (seed 000, Figure 9).
 
-    Walks with :func:`open_loop_walk` unless ``result`` (a recorded walk with
-    a trace at every tick) is given, and fits the sagittal filtered errors
-    after ``settle_s`` (the start from standing) and before any fall.
-    ``fit.thresholds`` goes to ``make_controller_params(deadzone=...)``.
+    Fits the sagittal filtered errors after ``settle_s`` (the start from
+    standing) and before any fall; ``fit.thresholds`` goes to the config's ``deadzone``.
 
     Args:
-        env_params: the environment (unused with ``result``).
-        ctrl_params: controller parameters at speed 0 (default: the env's).
-        seconds: duration of the walk, s (seed: 10 s, 25 steps).
+        result: a :class:`mjx_coman.rollout.WalkResult` saved with ``SaveAt(trace.trace, every=1)``.
         settle_s: samples before this time are left out, s.
-        seed: PRNG seed of the walk.
         at_phase_change: fit the samples at the phase changes only (default: every tick, as Figure 9).
-        result: a recorded :class:`~mjx_coman.walking.rollout.WalkResult` to fit instead of walking.
 
     Returns:
         :class:`DeadzoneFit` of the four sagittal errors.
     """
-    r = result if result is not None else open_loop_walk(env_params, ctrl_params, seconds=seconds, seed=seed)
-    mask, _ = _walk_mask(r, settle_s, at_phase_change)
-    return fit_deadzones(r.trace.error, mask)
+    mask, _ = _walk_mask(result, settle_s, at_phase_change)
+    return fit_deadzones(result.saved.error, mask)
 
 
-def identify_knee_deflection(env_params=None, ctrl_params=None, *, seconds: float = 10.0, settle_s: float = 2.0,
-                             seed: int = 0, result=None, weight_n=None) -> KneeFit:
-    """Knee deflections ``mu`` of eq. 21 from an open-loop in-place walk (seed 000, Figure 7).
+def identify_knee_deflection(result, weight_n, *, settle_s: float = 2.0) -> KneeFit:
+    """Knee deflections ``mu`` of eq. 21 from a recorded open-loop in-place walk (seed 000, Figure 7).
 
     Like :func:`identify_deadzones`; the deflections (link minus motor
     encoders) are regressed on the foot forces over ``m g`` (``weight_n``,
-    default that of ``env_params``). ``fit.mu_left_rad`` and
-    ``fit.mu_right_rad`` go to ``make_controller_params(mu_left_rad=..., mu_right_rad=...)``.
+    e.g. :func:`total_weight_n` of the env's model). ``fit.mu_left_rad`` and
+    ``fit.mu_right_rad`` go to the config's ``mu_left_rad``, ``mu_right_rad``.
     """
-    r = result if result is not None else open_loop_walk(env_params, ctrl_params, seconds=seconds, seed=seed)
-    w = total_weight_n(env_params.model) if weight_n is None else weight_n
-    mask, _ = _walk_mask(r, settle_s)
-    return fit_knee_deflection(r.trace.knee_deflection_rad, jnp.abs(r.trace.foot_force_n) / w, mask)
+    mask, _ = _walk_mask(result, settle_s)
+    return fit_knee_deflection(result.saved.knee_deflection_rad, jnp.abs(result.saved.foot_force_n) / weight_n, mask)

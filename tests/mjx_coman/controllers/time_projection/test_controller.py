@@ -1,4 +1,4 @@
-"""Tests of mjx_coman.walking.controller: parameters, blocks (Figure 3), phase clock, mirror symmetry."""
+"""Tests of the time-projection controller: config, blocks (Figure 3), phase clock, telemetry, mirror symmetry."""
 
 from __future__ import annotations
 
@@ -9,7 +9,10 @@ import pytest
 
 from jaxlp.filters import FOOTSTEP_TRUNCATION_RATIO
 from mjx_coman.actuators import JOINT_INDEX, NU
-from mjx_coman.walking import controller as ctl
+from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Observation, joystick
+from mjx_coman.controllers.time_projection import config as cfg_mod
+from mjx_coman.controllers.time_projection import controller as ctl
+from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG_INDEX
 
 MIRROR_TOL_RAD = 2e-5
 LATERAL_JOINTS = ("HipLat", "HipYaw", "AnkLat")  # sign flips under the left/right mirror
@@ -18,18 +21,21 @@ LEG_JOINTS = ("HipSag", "HipLat", "HipYaw", "KneeSag", "AnkLat", "AnkSag")
 
 @pytest.fixture(scope="module")
 def params():
-    return ctl.make_controller_params(None, 0.0)
+    from mjx_coman import controllers
+
+    return controllers.default_config("time-projection")
 
 
-@pytest.fixture(scope="module")
-def params_fast():
-    return ctl.make_controller_params(None, 0.2)
+params_fast = params  # the speed is the joystick's: one config for every speed
+FAST_MPS = 0.2
 
 
 @pytest.mark.parametrize("kwargs, name", [
-    (dict(speed_mps=0.5), "speed_mps"),
-    (dict(speed_mps=float("nan")), "speed_mps"),
     (dict(step_time_s=0.401), "step_time_s"),
+    (dict(robot="nope"), "robot"),
+    (dict(hold_adjustment=1.5), "hold_adjustment"),
+    (dict(lqr_weight_scale=(1.0, 0.0, 1.0)), "lqr_weight_scale"),
+    (dict(zeta="x"), "zeta"),
     (dict(zeta=0.0), "zeta"),
     (dict(zeta=1.5), "zeta"),
     (dict(deadzone=(0.01, 0.01, 0.1)), "deadzone"),
@@ -42,11 +48,17 @@ def params_fast():
     (dict(hip_attack=-0.1), "hip_attack"),
     (dict(step_width_m=-0.1), "step_width_m"),
 ])
-def test_make_controller_params_rejects_bad_values(kwargs, name):
-    kw = dict(speed_mps=0.0) | kwargs
-    speed = kw.pop("speed_mps")
+def test_make_config_rejects_bad_values(kwargs, name):
     with pytest.raises(ValueError, match=name):
-        ctl.make_controller_params(None, speed, **kw)
+        cfg_mod.make_config(**kwargs)
+
+
+def test_settings_are_the_keywords_of_make_config():
+    import inspect
+
+    assert [s.name for s in cfg_mod.SETTINGS] == list(inspect.signature(cfg_mod.make_config).parameters)
+    defaults = {k: v.default for k, v in inspect.signature(cfg_mod.make_config).parameters.items()}
+    assert {s.name: s.default for s in cfg_mod.SETTINGS} == defaults
 
 
 def test_params_hold_the_gait_tables(params, params_fast):
@@ -54,17 +66,18 @@ def test_params_hold_the_gait_tables(params, params_fast):
     assert n == 200 and params.dt_s == pytest.approx(0.002)
     assert params.nominal_base.shape == (n + 1, 2, 6) and params.footstep_table.shape == (n, 4)
     # The sagittal gait is linear in the speed: the step length of the commanded speed is v T.
-    q_end = ctl.nominal_at(params_fast, n, 10, 1.0)
+    q_end = ctl.nominal_at(params_fast, n, 10, 1.0, FAST_MPS)
     assert float(q_end[0, 0] - q_end[0, 2]) == pytest.approx(0.2 * 0.4, rel=1e-3)  # lands v T ahead of the stance foot
-    assert float(params.truncation_m) == pytest.approx(FOOTSTEP_TRUNCATION_RATIO * float(params.h1_m))
+    assert float(params.max_adjustment_m) == pytest.approx(FOOTSTEP_TRUNCATION_RATIO * float(params.h1_m))
     # In place, the speed ramp does not matter and the sagittal nominal is zero.
-    np.testing.assert_allclose(ctl.nominal_at(params, 57, 3, 1.0)[0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(ctl.nominal_at(params, 57, 3, 1.0, 0.0)[0], 0.0, atol=1e-6)
 
 
-@pytest.mark.parametrize("controller", ctl.CONTROLLERS)
+@pytest.mark.parametrize("hold", [0.0, 1.0])
 @pytest.mark.parametrize("tick", [0, 77, 199])
-def test_zero_error_gives_zero_adjustment(params, controller, tick):
-    adj, _ = ctl.footstep_block(params, jnp.asarray(tick), jnp.zeros(4), jnp.asarray(0.0), controller)
+def test_zero_error_gives_zero_adjustment(params, hold, tick):
+    p = params.replace(hold_adjustment=jnp.asarray(hold, params.h1_m.dtype))
+    adj, _ = ctl.footstep_block(p, jnp.asarray(tick), jnp.zeros(4), jnp.asarray(0.0))
     assert float(adj) == 0.0
     lift, pitch, theta = ctl.lift_block(params, tick * 0.002, jnp.zeros(4), adj)
     assert float(lift) == 0.0 and float(pitch) == 0.0 and float(theta) == 0.0
@@ -73,25 +86,32 @@ def test_zero_error_gives_zero_adjustment(params, controller, tick):
 def test_footstep_adjustment_follows_table_b_and_truncates(params):
     e = jnp.array([0.002, 0.004, -0.01, 0.03])
     for tick in (0, 60, 150):
-        adj, _ = ctl.footstep_block(params, jnp.asarray(tick), e, jnp.asarray(0.0), "time-projection")
+        adj, _ = ctl.footstep_block(params, jnp.asarray(tick), e, jnp.asarray(0.0))
         assert float(adj) == pytest.approx(float(params.footstep_table[tick] @ e), rel=1e-5)
     # a forward pelvis error steps forward; a huge one is truncated at 0.35 h1
-    big, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, 1.0, 0.0, 3.0]), 0.0, "time-projection")
-    assert float(big) == pytest.approx(float(params.truncation_m), rel=1e-6)
-    neg, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, -1.0, 0.0, -3.0]), 0.0, "time-projection")
-    assert float(neg) == pytest.approx(-float(params.truncation_m), rel=1e-6)
+    big, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, 1.0, 0.0, 3.0]), 0.0)
+    assert float(big) == pytest.approx(float(params.max_adjustment_m), rel=1e-6)
+    neg, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, -1.0, 0.0, -3.0]), 0.0)
+    assert float(neg) == pytest.approx(-float(params.max_adjustment_m), rel=1e-6)
 
 
 def test_dlqr_holds_the_phase_start_adjustment_and_open_loop_never_steps(params):
+    """The registered variants as configurations: ``hold_adjustment = 1`` (dlqr), ``footstep_gain = 0`` (open loop)."""
+    from mjx_coman import controllers
+
+    dlqr, ol_cfg = controllers.default_config("dlqr"), controllers.default_config("open-loop")
     e0 = jnp.array([0.0, 0.01, 0.0, 0.05])
-    adj0, held = ctl.footstep_block(params, jnp.asarray(0), e0, jnp.asarray(0.0), "dlqr")
+    adj0, held = ctl.footstep_block(dlqr, jnp.asarray(0), e0, jnp.asarray(0.0))
     assert float(adj0) == pytest.approx(float(params.footstep_table[0] @ e0), rel=1e-5) and float(adj0) > 0
-    adj1, held1 = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "dlqr")
+    adj1, held1 = ctl.footstep_block(dlqr, jnp.asarray(120), -3 * e0, held)
     assert float(adj1) == float(adj0) and float(held1) == float(held)
-    tp, _ = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "time-projection")
+    tp, _ = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held)
     assert float(tp) < 0  # time projection reacts to the new error at once
-    ol, _ = ctl.footstep_block(params, jnp.asarray(120), -3 * e0, held, "open-loop")
+    ol, _ = ctl.footstep_block(ol_cfg, jnp.asarray(120), -3 * e0, held)
     assert float(ol) == 0.0
+    # a variant changes its one setting only: the tables are the same
+    np.testing.assert_array_equal(np.asarray(ol_cfg.footstep_table), np.asarray(params.footstep_table))
+    assert float(ol_cfg.hold_adjustment) == 0.0 and float(dlqr.footstep_gain) == 1.0
 
 
 def test_adaptive_lift_and_foot_pitch_follow_the_leg_angle(params):
@@ -124,7 +144,7 @@ def test_leg_targets_mirror_between_phases(params_fast, tick, adjustment):
     t = tick * 0.002
 
     def targets(d):
-        q_nom = ctl.nominal_at(params_fast, tick, 10, d)
+        q_nom = ctl.nominal_at(params_fast, tick, 10, d, FAST_MPS)
         return ctl.joint_targets_block(params_fast, q_nom, t, d, jnp.asarray(adjustment), jnp.asarray(0.004),
                                        jnp.asarray(-0.05))
 
@@ -133,7 +153,7 @@ def test_leg_targets_mirror_between_phases(params_fast, tick, adjustment):
     np.testing.assert_allclose(q_right, _mirror(q_left), atol=MIRROR_TOL_RAD)
     # the swing (left) hip flexes further for a forward footstep adjustment
     if adjustment > 0:
-        base = ctl.joint_targets_block(params_fast, ctl.nominal_at(params_fast, tick, 10, 1.0), t, 1.0,
+        base = ctl.joint_targets_block(params_fast, ctl.nominal_at(params_fast, tick, 10, 1.0, FAST_MPS), t, 1.0,
                                        jnp.asarray(0.0), jnp.asarray(0.004), jnp.asarray(-0.05))
         assert q_left[JOINT_INDEX["LHipSag"]] < float(base[JOINT_INDEX["LHipSag"]]) - 0.05
 
@@ -142,11 +162,10 @@ def test_leg_targets_mirror_between_phases(params_fast, tick, adjustment):
 def test_hip_attack_splits_the_adjustment_between_ik_and_hip(params, hip_attack):
     """``a Delta / h1`` on the swing hip and ankle pitch (knee untouched), ``(1 - a) Delta`` through the IK."""
     from mjx_coman.kinematics import leg_fk, rot_y
-    from mjx_coman.walking.open_loop import LEFT_LEG_INDEX
 
     p = params.replace(hip_attack=jnp.asarray(hip_attack, params.h1_m.dtype))
     tick, delta = 130, 0.05
-    q_nom = ctl.nominal_at(p, tick, 10, 1.0)  # left swing
+    q_nom = ctl.nominal_at(p, tick, 10, 1.0, 0.0)  # left swing
 
     def targets(adj, prm=p):
         return np.asarray(ctl.joint_targets_block(prm, q_nom, tick * 0.002, 1.0, jnp.asarray(adj), jnp.asarray(0.0),
@@ -178,13 +197,14 @@ def test_hip_attack_splits_the_adjustment_between_ik_and_hip(params, hip_attack)
 
 @pytest.fixture(scope="module")
 def rolled(params, reset_state):
-    """2 n + 2 controller ticks on the reset readings, every state recorded (one compilation)."""
+    """2 n + 2 controller ticks on the reset readings, every state and telemetry recorded (one compilation)."""
     n = params.ticks_per_step
+    obs = Observation(reset_state.readings, joystick(), jnp.zeros(()))
 
     def run(p):
         def body(s, _):
-            s, cmd = ctl.step(p, s, reset_state.readings)
-            return s, (s.tick, s.step, s.d, cmd.target, s.adjustment_m)
+            s, cmd, tel = ctl.step(p, s, obs)
+            return s, (s.tick, s.step, s.d, cmd.target, s.adjustment_m, tel)
 
         return jax.lax.scan(body, ctl.init(p), None, length=2 * n + 2)
 
@@ -194,7 +214,7 @@ def rolled(params, reset_state):
 def test_step_runs_the_phase_clock(params, rolled):
     """Start-up phase (-1, d = -1), then a left swing (0, d = +1), then a right swing (1, d = -1)."""
     n = params.ticks_per_step
-    _, (tick, step, d, target, adj) = rolled
+    _, (tick, step, d, target, adj, _) = rolled
     tick, step, d = np.asarray(tick), np.asarray(step), np.asarray(d)
     assert target.shape == (2 * n + 2, NU) and np.all(np.isfinite(np.asarray(target)))
     np.testing.assert_array_equal(step[:n], -1)
@@ -206,25 +226,29 @@ def test_step_runs_the_phase_clock(params, rolled):
     np.testing.assert_array_equal(np.asarray(adj)[:n], 0.0)  # no footstep adjustment before walking
 
 
+def test_telemetry_reports_support_phase_and_the_planned_landing(params, rolled):
+    """Both feet in the start-up phase, then the right foot stands while the left swings, and so on."""
+    n = params.ticks_per_step
+    _, (_, step, d, _, adj, tel) = rolled
+    support, phase = np.asarray(tel.support), np.asarray(tel.phase)
+    np.testing.assert_array_equal(support[:n], SUPPORT_DOUBLE)
+    np.testing.assert_array_equal(support[n:2 * n], SUPPORT_RIGHT)
+    np.testing.assert_array_equal(support[2 * n:], SUPPORT_LEFT)
+    np.testing.assert_array_equal(np.asarray(tel.step), np.asarray(step))
+    np.testing.assert_allclose(phase[[0, n - 1, n, n + 100]], [0.0, (n - 1) / n, 0.0, 0.5], atol=1e-6)
+    land = np.asarray(tel.next_footstep_m)
+    # in place, the left foot lands a step width to the left of the right stance foot, plus the adjustment
+    np.testing.assert_allclose(land[n + 10, 1], float(params.step_width_m), atol=0.02)
+    np.testing.assert_allclose(land[n:2 * n, 0] - np.asarray(tel.footstep_adjustment_m)[n:2 * n, 0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(tel.footstep_adjustment_m)[:, 0], np.asarray(adj), atol=0)
+    assert tel.extra.error.shape == (2 * n + 2, 2, 4)
+
+
 def test_start_up_phase_keeps_the_feet_down(params, rolled, reset_state):
     """Without lift or roll the start-up targets stay near the crouched posture (sway only, a few cm)."""
     n = params.ticks_per_step
-    _, (_, _, _, target, _) = rolled
+    _, (_, _, _, target, _, _) = rolled
     dev = np.abs(np.asarray(target)[:n] - np.asarray(reset_state.actuator.motor_angle_rad)[None])
     legs = [JOINT_INDEX[s + j] for s in "LR" for j in ("HipLat", "AnkLat", "KneeSag")]
     assert dev[:, legs].max() < 0.15
     assert dev[:, [JOINT_INDEX["LKneeSag"], JOINT_INDEX["RKneeSag"]]].max() < 0.05  # no knee-bending lift
-
-
-@pytest.mark.parametrize("controller", ["no-deadzone", "dlqr", "open-loop"])
-def test_every_controller_steps(params, reset_state, controller):
-    """One jitted tick per controller variant: finite targets of the right shape, the clock started."""
-    state, cmd = jax.jit(ctl.step, static_argnames="controller")(params, ctl.init(params), reset_state.readings,
-                                                                   controller=controller)
-    assert cmd.target.shape == (NU,) and np.all(np.isfinite(np.asarray(cmd.target)))
-    assert int(state.tick) == 1 and int(state.step) == -1 and not bool(cmd.voltage_mode)
-
-
-def test_unknown_controller_is_rejected(params, reset_state):
-    with pytest.raises(ValueError, match="closed-loop"):
-        ctl.step(params, ctl.init(params), reset_state.readings, controller="closed-loop")

@@ -1,4 +1,4 @@
-"""Tests of mjx_coman.walking.estimation: 3LP relative state from encoders + IMU, filters, error (eq. 15, 26)."""
+"""Tests of the time-projection estimation: 3LP relative state from encoders + IMU, filters, error (eq. 15, 26)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from mjx_coman import load_model
 from mjx_coman.actuators import JOINT_INDEX, NU
 from mjx_coman.env import standing_posture
 from mjx_coman.sensors import Readings, quat_to_rpy
-from mjx_coman.walking import estimation as est
-from mjx_coman.walking.rollout import foot_body_ids
+from mjx_coman.controllers.time_projection import estimation as est
+from mjx_coman.ground_truth import foot_body_ids
 
 EXACT_TOL_M = 1e-5  # FK of exact angles against MuJoCo (float32)
 QUANT_TOL_M = 4e-3  # 12-bit link encoders: 1.5 mrad per joint, six joints per leg, ~0.5 m lever arms
@@ -116,3 +116,29 @@ def test_nominal_error_is_zero_on_the_nominal_and_mirrors_lateral(d):
     np.testing.assert_allclose(est.nominal_error(pos, vel, q, d), 0.0, atol=1e-7)
     bumped = est.nominal_error(pos.at[1, 1].add(0.01), vel, q, d)
     assert float(bumped[1, 1]) == pytest.approx(0.01 * d, abs=1e-6)  # lateral error in the d = +1 frame
+
+
+EST_TOL_M = 6e-3  # encoders (12 bit) + IMU noise against the simulator's truth, during a walk
+
+
+@pytest.mark.parametrize("name", ["time-projection", "open-loop"])
+def test_state_estimate_matches_the_simulator_during_a_walk(family_walks, name):
+    """The controller's measured relative positions (encoders + IMU) against the true poses of the shared walk."""
+    from mjx_coman.kinematics import quat_to_rot, rot_z
+
+    batch = family_walks(name)
+    rows, res = batch.rows, batch.res
+    i = next(i for i, (n, p, _, d) in enumerate(rows) if n == name and p is None and d == 0.0)
+    saved = jax.tree_util.tree_map(lambda x: x[i], res.saved)
+    d = saved["telemetry"].extra[batch.member].d
+
+    def truth(feet, pelvis, quat, d):
+        rot = quat_to_rot(quat)
+        to_heading = rot_z(-jnp.arctan2(rot[1, 0], rot[0, 0]))
+        left, right = (to_heading @ (feet[j] - pelvis) for j in (0, 1))
+        return est.relative_from_feet(left, right, d)
+
+    true_rel = jax.vmap(truth)(saved["feet_m"], saved["pelvis_m"], saved["pelvis_quat"], d)
+    measured = jax.vmap(est.measure_relative)(saved["readings"], d)
+    err = np.abs(np.asarray(measured) - np.asarray(true_rel))
+    assert err.max() < EST_TOL_M, err.max(axis=0)

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_coman.walking import identification as idn
+from mjx_coman.controllers.time_projection import identification as idn
 
 
 @pytest.mark.parametrize("mean,std", [((0.0, 0.0, 0.0, 0.0), (1e-3, 2e-3, 1e-2, 2e-2)),
@@ -134,32 +134,33 @@ def test_identify_from_a_recorded_walk_leaves_out_the_start_and_the_fall():
     load = np.stack([(d > 0) * 0.0 + (d < 0) * 1.0, (d > 0) * 1.0], axis=1)
     defl = 0.03 * load
     rec = SimpleNamespace(time_s=t_rec, fall_time_s=np.float32(fall),
-                          trace=SimpleNamespace(d=d, error=err, knee_deflection_rad=defl, foot_force_n=load * 250.0))
-    fit = idn.identify_deadzones(result=rec, settle_s=1.001)
+                          saved=SimpleNamespace(d=d, error=err, knee_deflection_rad=defl, foot_force_n=load * 250.0))
+    fit = idn.identify_deadzones(rec, settle_s=1.001)
     assert int(fit.n_samples) == 999  # 1.002 s ... 2.998 s
     np.testing.assert_allclose(fit.thresholds, std, rtol=0.08)
-    at_change = idn.identify_deadzones(result=rec, settle_s=1.001, at_phase_change=True)
+    at_change = idn.identify_deadzones(rec, settle_s=1.001, at_phase_change=True)
     assert int(at_change.n_samples) == 5  # phase starts at 1.2, 1.6, 2.0, 2.4, 2.8 s
-    knee = idn.identify_knee_deflection(result=rec, settle_s=1.001, weight_n=250.0)
+    knee = idn.identify_knee_deflection(rec, 250.0, settle_s=1.001)
     np.testing.assert_allclose(knee.mu_rad, 0.03, rtol=1e-5)
     with pytest.raises(ValueError, match="settle_s"):
-        idn.identify_deadzones(result=rec, settle_s=-1.0)
+        idn.identify_deadzones(rec, settle_s=-1.0)
 
 
 @pytest.mark.slow
 def test_identify_on_the_open_loop_in_place_walk():
     """Seed Figures 7 and 9 on the simulated robot: 8 s of the open-loop in-place gait, identified once."""
-    from mjx_coman.walking.rollout import walking_env_params
+    from mjx_coman.rollout import walking_env_params
+    from mjx_coman.seed000 import open_loop_walk
 
     env = walking_env_params()
-    walk = jax.tree_util.tree_map(np.asarray, idn.open_loop_walk(env, seconds=8.0))
-    assert not walk.fell and walk.steps >= 18
-    dz = idn.identify_deadzones(result=walk, settle_s=1.6)
+    walk = jax.tree_util.tree_map(np.asarray, open_loop_walk(env, seconds=8.0))
+    assert not walk.fell and walk.touchdowns >= 18
+    dz = idn.identify_deadzones(walk, settle_s=1.6)
     th = np.asarray(dz.thresholds)
     assert int(dz.n_samples) == 3201
     assert np.all((th[:2] > 5e-4) & (th[:2] < 0.03))  # positions: mm to cm of spread
     assert np.all((th[2:] > 5e-3) & (th[2:] < 0.3))  # velocities, m/s
-    knee = idn.identify_knee_deflection(env, result=walk, settle_s=1.6)
+    knee = idn.identify_knee_deflection(walk, idn.total_weight_n(env.model), settle_s=1.6)
     mu = np.asarray(knee.mu_rad)
     # the loaded knee yields (link ahead of motor) by a spring-sized angle: 390 N m/rad, ~10 N m
     assert np.all((mu > 0.005) & (mu < 0.06))

@@ -1,4 +1,4 @@
-"""Tests of mjx_coman.walking.open_loop: seed 000, eq. 21-25 and the 3LP -> joint targets."""
+"""Tests of the time-projection open-loop blocks: seed 000, eq. 21-25 and the 3LP -> joint targets."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from jaxlp.presets import get_params
 from mjx_coman import kinematics as kin
 from mjx_coman.actuators import JOINT_INDEX, JOINT_NAMES, NU, default_kp_v_per_rad
 from mjx_coman.env import standing_posture
-from mjx_coman.walking import open_loop as ol
+from mjx_coman.controllers.time_projection import open_loop as ol
 
 STEP_TIME_S = 0.4
 STEP_WIDTH_M = 0.25
