@@ -2,10 +2,11 @@
 
     coman-sweep map                       # the built-in default: full 3LP map (+ small MJX map)
     coman-sweep map --preset gpu          # thousands of MJX rollouts
-    coman-sweep map [--model 3lp|mjx] [--controller time-projection] [--phases 16] [--impulses 0:20:41]
-                    [--direction forward] [--noise X] [--bias X] [--randomize PCT] [--constants tuned.json] [--seed 0]
-                    [--chunk 256] [--out sweep-map] [--resume] [--force]
+    coman-sweep map [--model 3lp|mjx] [--controller time-projection] [--set KEY=VALUE ...] [--phases 16]
+                    [--impulses 0:20:41] [--direction forward] [--noise X] [--bias X] [--randomize PCT]
+                    [--constants tuned.json] [--seed 0] [--chunk 256] [--out sweep-map] [--resume] [--force]
     coman-sweep compare [--controllers time-projection,dlqr,open-loop] [same grid options] [--out sweep-compare]
+    coman-sweep controllers [--json]      # every controller of each model, with its settings
 
 ``map`` pushes the walking robot during step ``--push-step`` at each phase
 and impulse and writes results.npz, results.csv, basin.png and summary.json
@@ -21,17 +22,13 @@ Other modules add subcommands with :func:`register_command`.
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (first: appends the XLA CPU scheduler flag to XLA_FLAGS before JAX starts)
-
 import argparse
 import dataclasses
-import json
 import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
 
-from sweeps.grid import (CONTROLLERS, DIRECTIONS_RAD, MODEL_CONTROLLERS, GridError, SweepConfig, parse_impulses,
-                         parse_phases)
+from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
 from sweeps.presets import PRESETS
 
 
@@ -82,10 +79,7 @@ def _controllers(text: str) -> tuple[str, ...]:
     vals = tuple(v.strip() for v in text.split(",") if v.strip())
     if not vals:
         raise argparse.ArgumentTypeError("--controllers is empty")
-    bad = [v for v in vals if v not in CONTROLLERS]
-    if bad:
-        raise argparse.ArgumentTypeError(f"unknown controller {bad[0]!r}; choose from {', '.join(CONTROLLERS)}")
-    return vals
+    return vals  # checked against the model's controllers when the runs are planned
 
 
 def _number(name, kind=float, minimum=None, strict=False):
@@ -140,9 +134,11 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
       help="mjx: per-rollout uniform +-%% on the SEA spring stiffness (default 0)")
     a("--randomize-delay", type=_number("--randomize-delay", int, 0),
       help="mjx: per-rollout uniform +-ticks (2 ms) on the 20 ms transport delay (default 0)")
+    a("--set", action="append", default=None, metavar="KEY=VALUE",
+      help="a setting of the controller (repeatable; see coman-sweep controllers); part of the sweep's identity")
     a("--constants", type=Path,
-      help="mjx: the controller's dead-zones, zeta and velocity window from a tuned.json of coman-sweep tune "
-           "(its tuned constants) or a flat JSON of them (default: the controller's)")
+      help="the controller settings of a tuned.json of coman-sweep tune (its tuned overrides) or a flat JSON "
+           "of settings; --set applies on top")
     a("--seed", type=int, help="PRNG seed (default 0)")
     a("--chunk", type=_number("--chunk", int, 0, True), help="rollouts per jitted call (default 256)")
     a("--x64", action="store_true", default=None, help="simulate in 64-bit floats")
@@ -164,23 +160,28 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     m = sub.add_parser("map", help="basin map of one controller (no options: the built-in default)")
     _grid_options(m)
-    m.add_argument("--controller", choices=CONTROLLERS, help="controller (default time-projection)")
+    m.add_argument("--controller", help="a controller of the model (see coman-sweep controllers; "
+                                        "default time-projection)")
     m.add_argument("--preset", choices=tuple(PRESETS),
                    help="a built-in sweep (default: 'default' when no grid option is given)")
     m.add_argument("--out", type=Path, default=Path("sweep-map"), help="output folder (default sweep-map)")
     _run_options(m)
     c = sub.add_parser("compare", help="the same map for several controllers, side by side")
     _grid_options(c)
-    c.add_argument("--controllers", type=_controllers, help="comma-separated (default: every controller of the model)")
+    c.add_argument("--controllers", type=_controllers,
+                   help="comma-separated (default: every walking controller of the model)")
     c.add_argument("--out", type=Path, default=Path("sweep-compare"), help="output folder (default sweep-compare)")
     _run_options(c)
+    k = sub.add_parser("controllers", help="every controller of each model, with its settings and defaults")
+    k.add_argument("--model", help="one model only (3lp or mjx)")
+    k.add_argument("--json", action="store_true", help="print JSON")
     for name, cmd in COMMANDS.items():
         cmd.add_arguments(sub.add_parser(name, help=cmd.help))
     return parser
 
 
 def _overrides(args, model: str, strict: bool) -> dict:
-    """SweepConfig fields given on the command line for a run of ``model``.
+    """SweepConfig fields given on the command line for a run of ``model`` (``controller_overrides`` too).
 
     Raises:
         GridError: (``strict``) an option that does not apply to ``model``.
@@ -188,16 +189,6 @@ def _overrides(args, model: str, strict: bool) -> dict:
     out = {field: getattr(args, opt) for opt, field in _FIELDS.items() if getattr(args, opt, None) is not None}
     if getattr(args, "x64", None):
         out["x64"] = True
-    if getattr(args, "constants", None) is not None:
-        if model == "mjx":
-            from sweeps.holdout_mjx import load_constants
-
-            try:
-                out.update(load_constants(args.constants))
-            except ValueError as e:
-                raise GridError(f"--constants: {e}") from None
-        elif strict:
-            raise GridError("--constants applies to --model mjx only")
     for opt, per_model in _MODEL_FIELDS.items():
         val = getattr(args, opt, None)
         if val is None:
@@ -209,14 +200,45 @@ def _overrides(args, model: str, strict: bool) -> dict:
     return out
 
 
+def _controller_overrides(args, model: str, controller: str) -> dict:
+    """``--constants`` then ``--set`` as the controller's overrides, typed by its settings (GridError naming a bad one)."""
+    from sweeps.models import get_model
+
+    settings = get_model(model).settings(controller)
+    ov = {}
+    if getattr(args, "constants", None) is not None:
+        from sweeps.holdout import load_overrides, transfer_overrides
+
+        try:
+            ov.update(transfer_overrides(load_overrides(args.constants), settings))
+        except ValueError as e:
+            raise GridError(f"--constants: {e}") from None
+    if getattr(args, "set", None):
+        from mjx_coman import controllers
+
+        shim = controllers.Controller(controller, None, None, None, None, tuple(settings))
+        try:
+            ov.update(controllers.parse_overrides(shim, args.set))
+        except ValueError as e:
+            raise GridError(str(e).replace(f"controller {controller}", f"controller {controller} (model {model})"))
+    return ov
+
+
 def _given(args) -> bool:
     """Whether any grid or controller option was given."""
-    opts = (*_FIELDS, *_MODEL_FIELDS, "x64", "controller", "controllers", "constants")
+    opts = (*_FIELDS, *_MODEL_FIELDS, "x64", "controller", "controllers", "constants", "set")
     return any(getattr(args, o, None) is not None for o in opts)
+
+
+def _config(fields: dict, args, controller: str) -> SweepConfig:
+    cfg = SweepConfig(**dict(fields, controller=controller))
+    return cfg.with_overrides(_controller_overrides(args, cfg.model, controller)).validate()
 
 
 def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
     """``(out folder, config, optional, note)`` per run of the parsed arguments (raises :class:`GridError`)."""
+    from sweeps.models import get_model
+
     out = Path(args.out)
     preset = getattr(args, "preset", None)
     if args.command == "map" and (preset or not _given(args)):
@@ -225,24 +247,70 @@ def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
         for run in runs:
             fields = dict(run.fields)
             fields.update(_overrides(args, fields["model"], strict=False))
-            if args.controller:
-                fields["controller"] = args.controller
-            plans.append((out / run.name, SweepConfig(**fields).validate(), run.optional, run.note))
+            ctrl = args.controller or fields.pop("controller", "time-projection")
+            fields.pop("controller", None)
+            plans.append((out / run.name, _config(fields, args, ctrl), run.optional, run.note))
         models = {p[1].model for p in plans}
-        if getattr(args, "constants", None) is not None and "mjx" not in models:
-            raise GridError("--constants applies to --model mjx only")
         for opt, per_model in _MODEL_FIELDS.items():  # an option that applies to none of the runs
             if getattr(args, opt, None) is not None and not models & set(per_model):
                 raise GridError(f"--{opt.replace('_', '-')} applies to --model {', '.join(per_model)} only")
         return plans
     model = args.model or "3lp"
-    if model not in MODEL_CONTROLLERS:
-        raise GridError(f"unknown model {model!r}; choose one of {', '.join(MODEL_CONTROLLERS)}")
-    base = dataclasses.replace(SweepConfig(), **_overrides(args, model, strict=True))
+    m = get_model(model)  # GridError listing the models
+    base = dict(_overrides(args, model, strict=True), model=model)
     if args.command == "map":
-        return [(out, dataclasses.replace(base, controller=args.controller or base.controller).validate(), False, "")]
-    ctrls = args.controllers or MODEL_CONTROLLERS[model]
-    return [(out / c, dataclasses.replace(base, controller=c).validate(), False, "") for c in ctrls]
+        return [(out, _config(base, args, args.controller or "time-projection"), False, "")]
+    ctrls = args.controllers or m.compare_default()
+    known = m.controllers()
+    bad = [c for c in ctrls if c not in known]
+    if bad:
+        raise GridError(f"unknown controller {bad[0]!r} for model {model}; choose from {', '.join(known)}")
+    return [(out / c, _config(base, args, c), False, "") for c in ctrls]
+
+
+def controllers_table(model: str | None = None) -> dict:
+    """``{model: [{name, description, settings: [...]}, ...]}`` of every model's controllers (JSON-ready)."""
+    from sweeps.models import get_model, model_names
+
+    out = {}
+    for name in ([model] if model else model_names()):
+        m = get_model(name)
+        rows = []
+        for c in m.controllers():
+            if name == "mjx":
+                from mjx_coman import controllers
+
+                rows.append(controllers.describe(c))
+            else:
+                rows.append(dict(name=c, description=f"jaxlp.controllers {c!r} on the 3LP plant", privileged=False,
+                                 walking=True, settings=[dict(name=s.name, default=list(s.default)
+                                                              if isinstance(s.default, tuple) else s.default,
+                                                              tunable=s.tunable, help=s.help)
+                                                         for s in m.settings(c)]))
+        out[name] = rows
+    return out
+
+
+def _list_controllers(args, parser) -> int:
+    try:
+        table = controllers_table(args.model)
+    except (GridError, ValueError) as e:
+        parser.error(str(e))
+    if args.json:
+        from sweeps.runner import strict_json
+
+        print(strict_json(table))
+        return 0
+    for model, rows in table.items():
+        print(f"model {model}:")
+        for r in rows:
+            print(f"  {r['name']:18s} {r['description']}")
+            tun = [s for s in r["settings"] if s["tunable"]]
+            print(f"  {'':18s} tunable: " + ", ".join(f"{s['name']}={s['default']}" for s in tun))
+            fixed = [s for s in r["settings"] if not s["tunable"]]
+            if fixed:
+                print(f"  {'':18s} static: " + ", ".join(f"{s['name']}={s['default']}" for s in fixed))
+    return 0
 
 
 def _describe(summary: dict, out: Path) -> str:
@@ -295,7 +363,7 @@ def _sweep(args, parser) -> int:
 
     from sweeps import report
     from sweeps.models import ModelUnavailable, get_model
-    from sweeps.runner import SweepConflict, run_sweep, save_text_atomic
+    from sweeps.runner import SweepConflict, run_sweep, save_text_atomic, strict_json
 
     try:
         runnable = []
@@ -327,7 +395,7 @@ def _sweep(args, parser) -> int:
         out = Path(args.out)
         table = report.compare_table(runs)
         report.save_basin_png(out / "compare.png", runs)
-        save_text_atomic(out / "compare.json", json.dumps(table, indent=1))
+        save_text_atomic(out / "compare.json", strict_json(table))
         print(report.format_compare_table(table))
         print(f"wrote {out}/compare.png, compare.json")
     return 0
@@ -339,6 +407,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.command in COMMANDS:
         return COMMANDS[args.command].run(args, parser)
+    if args.command == "controllers":
+        return _list_controllers(args, parser)
     return _sweep(args, parser)
 
 

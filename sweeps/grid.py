@@ -18,14 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 DIRECTIONS_RAD = {"forward": 0.0, "left": math.pi / 2, "backward": math.pi, "right": -math.pi / 2}
-MODEL_CONTROLLERS = {
-    "3lp": ("time-projection", "dlqr", "open-loop"),
-    "mjx": ("time-projection", "dlqr", "open-loop", "no-deadzone"),
-}
-CONTROLLERS = ("time-projection", "dlqr", "open-loop", "no-deadzone")
-
-
-CONSTANT_FIELDS = ("deadzone", "zeta", "velocity_window")  # MJX controller constants (None: the defaults)
+RESULTS_VERSION = 2  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not
 
 
 class GridError(ValueError):
@@ -93,8 +86,10 @@ class SweepConfig:
     """Everything that decides a sweep's results (plain values, hashable).
 
     Attributes:
-        model: rollout model name (``"3lp"``; see :mod:`sweeps.models`).
-        controller: ``"time-projection"``, ``"dlqr"`` or ``"open-loop"``.
+        model: rollout model name (``"3lp"`` or ``"mjx"``; see :mod:`sweeps.models`).
+        controller: a controller name of the model (``mjx``: :func:`mjx_coman.controllers.names`).
+        controller_overrides: ``((setting, value), ...)`` sorted: the controller's settings changed from its
+            defaults (``--set KEY=VALUE``; part of the sweep's identity).
         robot: 3LP parameter preset (:func:`jaxlp.presets.get_params`).
         phases: push start times as fractions of the step, in [0, 1).
         impulses_ns: push impulses, N s (force = impulse / duration).
@@ -106,6 +101,8 @@ class SweepConfig:
         n_steps: phases simulated per rollout.
         noise_std_m: 3LP: sensor noise std on relative positions, m (sensing on if > 0 or bias).
         bias_m: 3LP: constant sagittal pelvis position bias, m.
+        bias_std_m: 3LP: std of a per-rollout sagittal bias of the swing and pelvis positions, m (sensing on).
+        recover_tol: 3LP: dimensionless landing error under which a step counts as recovered.
         sensor_noise_scale: MJX: IMU, gyro and F/T noise as a multiple of COMAN's nominal
             levels (:func:`mjx_coman.sensors.make_sensor_params`); 0: noise-free (12-bit encoders stay).
         encoder_offset_std_rad: MJX: std of constant per-joint link encoder offsets, drawn per rollout, rad.
@@ -115,10 +112,6 @@ class SweepConfig:
         randomize_spring_pct: MJX: per-rollout uniform +-% on the SEA spring stiffness (one factor per joint).
         randomize_delay_ticks: MJX: per-rollout uniform integer offset in [-k, k] control ticks on the
             transport delay (nominal 10 ticks = 20 ms).
-        deadzone: MJX: the four sagittal dead-zone thresholds of eq. 27 ``[e1 m, e2 m, e1_dot m/s,
-            e2_dot m/s]`` of the walking controller (``None``: its defaults).
-        zeta: MJX: the IIR constant of eq. 26 per 2 ms tick (``None``: 0.1).
-        velocity_window: MJX: the velocity moving-average length, samples (``None``: 30).
         seed: PRNG seed.
         chunk: rollouts per chunk (one jitted call; also the resume unit).
         x64: simulate in 64-bit floats.
@@ -126,6 +119,7 @@ class SweepConfig:
 
     model: str = "3lp"
     controller: str = "time-projection"
+    controller_overrides: tuple = ()
     robot: str = "coman"
     phases: tuple[float, ...] = tuple(k / 16 for k in range(16))
     impulses_ns: tuple[float, ...] = tuple(float(v) for v in np.linspace(0.0, 20.0, 41))
@@ -137,27 +131,30 @@ class SweepConfig:
     n_steps: int = 10
     noise_std_m: float = 0.0
     bias_m: float = 0.0
+    bias_std_m: float = 0.0
+    recover_tol: float = 0.02
     randomize_mass_pct: float = 0.0
     randomize_leg_pct: float = 0.0
     sensor_noise_scale: float = 0.0
     encoder_offset_std_rad: float = 0.0
     randomize_spring_pct: float = 0.0
     randomize_delay_ticks: int = 0
-    deadzone: tuple[float, ...] | None = None
-    zeta: float | None = None
-    velocity_window: int | None = None
     seed: int = 0
     chunk: int = 256
     x64: bool = False
 
     def validate(self) -> "SweepConfig":
-        """Raise :class:`GridError` naming the first bad value; return ``self``."""
-        if self.model not in MODEL_CONTROLLERS:
-            raise GridError(f"unknown model {self.model!r}; choose one of {', '.join(MODEL_CONTROLLERS)}")
-        ctrls = MODEL_CONTROLLERS[self.model]
-        if self.controller not in ctrls:
-            raise GridError(f"unknown controller {self.controller!r} for model {self.model}; "
-                            f"choose one of {', '.join(ctrls)}")
+        """Raise :class:`GridError` naming the first bad value; return ``self``.
+
+        The controller name and its overrides are checked by the model (:func:`sweeps.models.get_model`).
+        """
+        from sweeps.models import get_model
+
+        if not isinstance(self.controller_overrides, tuple) or any(
+                not (isinstance(kv, tuple) and len(kv) == 2 and isinstance(kv[0], str)) for kv in self.controller_overrides):
+            raise GridError(f"controller_overrides must be ((setting, value), ...), got {self.controller_overrides!r}")
+        if list(self.controller_overrides) != sorted(self.controller_overrides, key=lambda kv: kv[0]):
+            raise GridError("controller_overrides must be sorted by setting (use with_overrides)")
         if self.direction not in DIRECTIONS_RAD:
             raise GridError(f"unknown direction {self.direction!r}; choose one of {', '.join(DIRECTIONS_RAD)}")
         if not self.phases or not self.impulses_ns:
@@ -166,17 +163,21 @@ class SweepConfig:
             raise GridError(f"impulses must be finite and non-negative, got {list(self.impulses_ns)}")
         if any(not (0.0 <= v < 1.0) for v in self.phases):
             raise GridError(f"phases must lie in [0, 1), got {list(self.phases)}")
-        for name in ("push_duration_s", "step_time_s"):
-            if not getattr(self, name) > 0:
-                raise GridError(f"{name} must be positive, got {getattr(self, name)}")
-        for name in ("noise_std_m", "sensor_noise_scale", "encoder_offset_std_rad", "randomize_mass_pct",
+        for name in ("push_duration_s", "step_time_s", "recover_tol"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise GridError(f"{name} must be finite and positive, got {v}")
+        for name in ("speed_mps", "bias_m"):
+            if not math.isfinite(getattr(self, name)):
+                raise GridError(f"{name} must be finite, got {getattr(self, name)}")
+        for name in ("noise_std_m", "bias_std_m", "sensor_noise_scale", "encoder_offset_std_rad", "randomize_mass_pct",
                      "randomize_leg_pct", "randomize_spring_pct", "randomize_delay_ticks"):
             if not getattr(self, name) >= 0 or not math.isfinite(getattr(self, name)):
                 raise GridError(f"{name} must be finite and non-negative, got {getattr(self, name)}")
         for name in ("randomize_mass_pct", "randomize_leg_pct", "randomize_spring_pct"):
             if getattr(self, name) >= 50:
                 raise GridError(f"{name} must stay below 50 %, got {getattr(self, name)}")
-        only = {"3lp": ("noise_std_m", "bias_m", "randomize_leg_pct"),
+        only = {"3lp": ("noise_std_m", "bias_m", "bias_std_m", "randomize_leg_pct"),
                 "mjx": ("sensor_noise_scale", "encoder_offset_std_rad", "randomize_spring_pct",
                         "randomize_delay_ticks")}
         for model, names in only.items():
@@ -184,24 +185,24 @@ class SweepConfig:
                 if self.model != model and getattr(self, name) != 0:
                     raise GridError(f"{name} applies to --model {model} only, got {getattr(self, name)} "
                                     f"with --model {self.model}")
-        given = [name for name in CONSTANT_FIELDS if getattr(self, name) is not None]
-        if given and self.model != "mjx":
-            raise GridError(f"{given[0]} (controller constants) applies to --model mjx only")
-        if self.deadzone is not None and (len(self.deadzone) != 4 or not all(
-                math.isfinite(v) and v > 0 for v in self.deadzone)):
-            raise GridError(f"deadzone must be 4 finite positive thresholds, got {list(self.deadzone)}")
-        if self.zeta is not None and not (math.isfinite(self.zeta) and 0 < self.zeta <= 1):
-            raise GridError(f"zeta must lie in (0, 1], got {self.zeta}")
-        if self.velocity_window is not None and (int(self.velocity_window) != self.velocity_window
-                                                 or self.velocity_window < 1):
-            raise GridError(f"velocity_window must be a whole number of samples >= 1, got {self.velocity_window}")
-        if self.push_step < 0 or self.push_step >= self.n_steps:
+        if self.model != "3lp" and self.recover_tol != SweepConfig.recover_tol:
+            raise GridError(f"recover_tol applies to --model 3lp only (mjx walks are judged on ground truth)")
+        if self.n_steps < 1 or self.push_step < 0 or self.push_step >= self.n_steps:
             raise GridError(f"push_step must lie in [0, n_steps={self.n_steps}), got {self.push_step}")
         if not 0 <= self.seed < 2**32:
             raise GridError(f"seed must lie in [0, 2**32), got {self.seed}")
         if self.chunk < 1:
             raise GridError(f"chunk must be >= 1, got {self.chunk}")
+        get_model(self.model).check(self)  # the controller and its overrides (GridError naming them)
         return self
+
+    def overrides(self) -> dict:
+        """``controller_overrides`` as a dict."""
+        return dict(self.controller_overrides)
+
+    def with_overrides(self, overrides: dict) -> "SweepConfig":
+        """A copy with these controller overrides (sorted, lists made tuples)."""
+        return dataclasses.replace(self, controller_overrides=freeze_overrides(overrides))
 
     @property
     def sensing(self) -> bool:
@@ -219,21 +220,34 @@ class SweepConfig:
         return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1)
 
     def to_dict(self) -> dict:
-        """Every field as JSON values; controller constants left at their defaults (``None``) are left
-        out, so sweeps from before those fields existed keep their hash."""
+        """Every field as JSON values (the overrides as a dict) and the results version."""
         d = dataclasses.asdict(self)
         d["phases"], d["impulses_ns"] = list(self.phases), list(self.impulses_ns)
-        for name in CONSTANT_FIELDS:
-            if d[name] is None:
-                del d[name]
-            elif name == "deadzone":
-                d[name] = list(d[name])
+        d["controller_overrides"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.controller_overrides}
+        d["results_version"] = RESULTS_VERSION
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SweepConfig":
+        """The inverse of :meth:`to_dict` (``results_version`` dropped)."""
+        d = {k: v for k, v in d.items() if k != "results_version"}
+        d["phases"], d["impulses_ns"] = tuple(d["phases"]), tuple(d["impulses_ns"])
+        d["controller_overrides"] = freeze_overrides(d.get("controller_overrides") or {})
+        return cls(**d)
 
     def hash(self) -> str:
         """A short digest of every field (the results directory's identity)."""
         blob = json.dumps(self.to_dict(), sort_keys=True).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _freeze(v):
+    return tuple(_freeze(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+
+def freeze_overrides(overrides: dict) -> tuple:
+    """``{setting: value}`` as the hashable, sorted ``controller_overrides`` of a config."""
+    return tuple(sorted((str(k), _freeze(v)) for k, v in dict(overrides).items()))
 
 
 class GridInputs(NamedTuple):

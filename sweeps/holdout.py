@@ -1,153 +1,106 @@
-"""Held-out validation of estimation constants on push grids (the sweep's grid, outcomes and basin maps).
+"""Held-out validation of tuned constants: the seed's and the tuned overrides on the same held-out sweeps.
 
-A held-out sweep is a :class:`sweeps.grid.SweepConfig` grid (push phase x
-impulse, one direction, fresh noise seed) run on the 3LP plant with given
-filter constants (:class:`sweeps.objective.Constants`): per rollout the same
-outcomes as the sweep's ``3lp`` model (fell, steps to recover, footstep
-adjustment), summarised and drawn by :mod:`sweeps.report`. Each rollout draws
-its measurement noise and a systematic sagittal bias (swing and pelvis
-positions, std ``bias_std_m``) from ``fold_in(PRNGKey(seed), index)``, so the
-seed and the tuned constants meet the same pushes and the same sensors.
-
-The registry's ``3lp`` model cannot carry other filter constants (its sensing
-is fixed by the configuration), so the rollouts here are jitted and vmapped in
-chunks directly rather than through :func:`sweeps.runner.run_sweep`.
+A tuning record (``tuned.json`` of ``coman-sweep tune``, either plant) holds
+the controller overrides before and after tuning. Each (set, direction) pair
+is one ordinary sweep of :func:`sweeps.runner.run_sweep` into its own folder
+(``OUT/holdout/<set>/<direction>/``), so it is chunked, sharded, resumed
+after a kill and refused over another sweep like any ``coman-sweep map``.
+The grid is the model's default (:attr:`sweeps.models.Model.holdout_grid`:
+fresh noise seed, sensors like the training ones), overridable. Constants
+tuned on one model reach the other through the settings they share
+(:func:`transfer_overrides`: the 3LP's real-valued ``window_samples`` becomes
+the MJX controller's whole-sample ``window``). Per set: recovery rate, steps
+to recover and the largest recovered impulse per phase; basin maps.
 """
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
+import json
+from pathlib import Path
 
-import math
-import time
-from typing import NamedTuple
-
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from jaxlp import control
-from jaxlp.presets import get_params
-from jaxlp.simulate import Push, SimSpec, simulate
 from sweeps import report
-from sweeps.grid import SweepConfig, grid_inputs
-from sweeps.objective import Constants, landing_error_norms, sensing_of
+from sweeps.grid import SweepConfig
+
+SETS = ("seed", "tuned")
 
 
-# Noisy walks never settle to the noise-free 0.02 of jaxlp.simulate: undisturbed walks with the seed's
-# constants and 1 mm noise show landing errors of 0.1-0.3 (mostly velocities), so "recovered" is looser here.
-RECOVER_TOL = 0.1
-LATE_STEPS = 3  # the residual wobble: mean landing error over the last 3 landings
+def transfer_overrides(overrides: dict, settings) -> dict:
+    """The overrides a controller with ``settings`` can take: shared names, ``window_samples`` -> ``window``."""
+    names = {s.name: s for s in settings}
+    out = {}
+    for k, v in overrides.items():
+        if k == "window_samples" and k not in names and "window" in names:
+            out["window"] = int(round(float(v)))
+        elif k in names:
+            out[k] = tuple(v) if isinstance(v, list) else v
+    return out
 
 
-class HoldoutRun(NamedTuple):
-    """A finished held-out sweep: the grid, per-rollout results (as the sweep's) and timing."""
+def load_overrides(path: Path, which: str = "after") -> dict:
+    """Controller overrides from a ``tuned.json`` (its ``overrides_<which>``) or a flat JSON of settings.
 
-    config: SweepConfig
-    results: dict
-    timing: dict
-
-
-def _rollout(config: SweepConfig, c: Constants, lateral_deadzone, bias_std_m: float, recover_tol: float, index,
-             phase, impulse_ns, direction_rad):
-    params = get_params(config.robot)
-    dtype = params.m1.dtype
-    key = jax.random.fold_in(jax.random.PRNGKey(config.seed), index)
-    noise_key, bias_key = jax.random.split(key)
-    bias = jnp.zeros((2, 2), dtype).at[0].set(bias_std_m * jax.random.normal(bias_key, (2,), dtype))
-    T = config.step_time_s
-    push = Push(start_s=jnp.asarray((config.push_step + phase) * T, dtype),
-                duration_s=jnp.asarray(config.push_duration_s, dtype),
-                force_n=jnp.asarray(impulse_ns / config.push_duration_s, dtype),
-                direction_rad=jnp.asarray(direction_rad, dtype))
-    spec = SimSpec(step_time_s=T, n_steps=config.n_steps, controller=config.controller, sensing=True, window=60)
-    w = control.default_weights(params)
-    weights = control.LQRWeights(w.position * c.weight_scale[0], w.velocity * c.weight_scale[1],
-                                 w.torque * c.weight_scale[2])
-    sensing = sensing_of(c, lateral_deadzone, jnp.asarray(config.noise_std_m, dtype), bias)
-    r = simulate(params, push, spec, speed_mps=config.speed_mps, weights=weights, sensing=sensing, key=noise_key,
-                 recover_tol=recover_tol)
-    finite = jnp.all(jnp.isfinite(r.pelvis_m)) & jnp.all(jnp.isfinite(r.step_error))
-    return dict(fell=r.fell | ~finite, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
-                max_abs_footstep_adjustment_m=jnp.max(jnp.abs(r.footstep_adjustment_m)),
-                fall_time_s=r.fall_time_s, nan=~finite,
-                late_error=jnp.mean(landing_error_norms(params, r.step_error)[-LATE_STEPS:]))
-
-
-def run_holdout(config: SweepConfig, constants: Constants, lateral_deadzone, bias_std_m: float = 2e-3,
-                recover_tol: float = RECOVER_TOL, chunk: int = 256) -> HoldoutRun:
-    """Run the grid of ``config`` with ``constants``; results as :func:`sweeps.runner.run_sweep`'s.
-
-    ``config.noise_std_m`` is the white noise on the relative positions;
-    ``config.bias_m`` must be 0 (the bias is drawn per rollout, std ``bias_std_m``).
-    A pushed walk has recovered after ``steps_to_recover`` steps when the
-    error at every later landing stays under ``recover_tol`` (dimensionless:
-    positions in ``h1``, velocities in ``sqrt(g h1)``, both axes).
+    Raises:
+        ValueError: an unreadable file or no overrides, naming the file.
     """
-    config.validate()
-    if config.model != "3lp" or config.bias_m != 0 or config.randomize_mass_pct or config.randomize_leg_pct:
-        raise ValueError("held-out sweeps run --model 3lp without a fixed bias or robot randomisation")
-    if not bias_std_m >= 0:
-        raise ValueError(f"bias_std_m must be non-negative, got {bias_std_m}")
-    t0 = time.perf_counter()
-    inputs = grid_inputs(config)
-    n = config.n_rollouts
-    chunk = min(chunk, n)
-    fn = jax.jit(jax.vmap(lambda i, p, j, d: _rollout(config, constants, lateral_deadzone, bias_std_m, recover_tol,
-                                                      i, p, j, d)))
-    parts = []
-    for lo in range(0, n, chunk):
-        idx = np.arange(lo, lo + chunk) % n  # the last chunk wraps around: same shapes, one compile
-        out = fn(inputs.index[idx], inputs.phase[idx], inputs.impulse_ns[idx], inputs.direction_rad[idx])
-        parts.append({k: np.asarray(v)[: min(chunk, n - lo)] for k, v in out.items()})
-    res = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    res.update(index=inputs.index, phase=inputs.phase, impulse_ns=inputs.impulse_ns,
-               direction_rad=inputs.direction_rad)
-    res["reason"] = np.where(res["nan"], "nan", np.where(res["fell"], "fell", ""))
-    ticks = SimSpec(step_time_s=config.step_time_s, n_steps=config.n_steps).ticks_per_step * config.n_steps
-    wall = time.perf_counter() - t0
-    return HoldoutRun(config, res, dict(wall_s=wall, rollouts=n, ticks_per_rollout=ticks,
-                                        chunks=math.ceil(n / chunk)))
+    if which not in ("before", "after"):
+        raise ValueError(f"which must be 'before' or 'after', got {which!r}")
+    try:
+        d = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as e:
+        raise ValueError(f"cannot read constants from {path}: {e}") from None
+    if not isinstance(d, dict):
+        raise ValueError(f"{path} holds no settings object")
+    d = d.get(f"overrides_{which}", d if "config" not in d else None)
+    if not isinstance(d, dict) or not d:
+        raise ValueError(f"{path} holds no controller overrides (overrides_{which})")
+    return d
 
 
-def summary(run: HoldoutRun) -> dict:
-    """Recovery rate, steps to recover and the largest recovered impulse per phase of a held-out sweep.
+def holdout_configs(record: dict, model: str, overrides: dict, **grid) -> list[SweepConfig]:
+    """One sweep per held-out direction with these overrides (``grid`` overrides the model's default grid).
 
-    Also takes a :class:`sweeps.runner.SweepRun` (the MJX held-out sweeps of :mod:`sweeps.holdout_mjx`,
-    which have no ``late_error``).
+    Raises:
+        GridError: a bad grid field or override.
     """
+    from sweeps.models import get_model
+
+    m = get_model(model)
+    g = dict(m.holdout_grid(record), **grid)
+    g.setdefault("seed", int(record["config"]["seed"]) + 1)
+    g.setdefault("controller", record["controller"])
+    dirs = g.pop("directions")
+    g["phases"], g["impulses_ns"] = tuple(g["phases"]), tuple(g["impulses_ns"])
+    ov = transfer_overrides(overrides, m.settings(g["controller"]))
+    return [SweepConfig(model=model, direction=d, **g).with_overrides(ov).validate() for d in dirs]
+
+
+def summary(run) -> dict:
+    """Recovery rate, steps to recover and the largest recovered impulse per phase of one held-out sweep."""
     res, cfg = run.results, run.config
     ok = report.recovered(res)
     pushed = res["impulse_ns"] > 0
     steps = res["steps_to_recover"][ok & pushed]
     settled = steps[steps >= 0]
+    late = res.get("late_error")
     return dict(
         direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=float(np.mean(ok)),
         pushed_recovery_rate=float(np.mean(ok[pushed])) if pushed.any() else None,
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
-        late_error_median=float(np.median(res["late_error"][ok])) if ok.any() and "late_error" in res else None,
+        late_error_median=float(np.median(late[ok])) if late is not None and ok.any() else None,
         per_phase=[dict(phase=r["phase"], max_recovered_impulse_ns=r["max_recovered_impulse_ns"],
                         recovery_rate=r["recovery_rate"]) for r in report.per_phase(cfg, res)],
         wall_s=run.timing.get("wall_s"),
     )
 
 
-def holdout_configs(directions=("forward", "backward"), phases=tuple(k / 16 for k in range(16)),
-                    impulses_ns=tuple(float(v) for v in np.linspace(0.0, 14.0, 29)), noise_std_m: float = 1e-3,
-                    n_steps: int = 10, seed: int = 1001, controller: str = "time-projection") -> list[SweepConfig]:
-    """The held-out grids: one per direction, 10-step walks pushed in step 2, a noise seed unlike training's."""
-    return [SweepConfig(model="3lp", controller=controller, phases=tuple(phases), impulses_ns=tuple(impulses_ns),
-                        direction=d, push_step=2, n_steps=n_steps, noise_std_m=noise_std_m, seed=seed).validate()
-            for d in directions]
-
-
-def compare(runs: dict[str, list[HoldoutRun]]) -> dict:
-    """Per constant set (``"seed"``, ``"tuned"``): per direction summaries and the pooled recovery rate."""
+def compare(runs: dict) -> dict:
+    """Per set (``"seed"``, ``"tuned"``): per direction summaries and the pooled rates."""
     out = {}
     for name, lst in runs.items():
-        per = [summary(r) for r in lst]
         ok = np.concatenate([report.recovered(r.results) for r in lst])
         steps = np.concatenate([r.results["steps_to_recover"][report.recovered(r.results)
                                                               & (r.results["impulse_ns"] > 0)] for r in lst])
@@ -156,15 +109,16 @@ def compare(runs: dict[str, list[HoldoutRun]]) -> dict:
                                if "late_error" in r.results] or [np.zeros(0)])
         out[name] = dict(recovery_rate=float(np.mean(ok)), rollouts=int(ok.size),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
-                         settled_within_tol=int(settled.size),
-                         recover_tol=RECOVER_TOL if lst[0].config.model == "3lp" else None,
+                         settled=int(settled.size), model=lst[0].config.model,
+                         recover_tol=lst[0].config.recover_tol if lst[0].config.model == "3lp" else None,
                          late_error_median=float(np.median(late)) if late.size else None,
-                         per_direction=per)
+                         overrides=lst[0].config.to_dict()["controller_overrides"],
+                         per_direction=[summary(r) for r in lst])
     return out
 
 
-def plot_holdout(path, runs: dict[str, list[HoldoutRun]]) -> None:
-    """Basin maps: one row per constant set, one column per direction, written atomically as PNG."""
+def plot_holdout(path, runs: dict) -> None:
+    """Basin maps: one row per set, one column per direction, written atomically as PNG."""
     import io
 
     import matplotlib
@@ -189,39 +143,95 @@ def plot_holdout(path, runs: dict[str, list[HoldoutRun]]) -> None:
     save_bytes_atomic(path, buf.getvalue())
 
 
-_FIELDS = ("index", "phase", "impulse_ns", "direction_rad", "fell", "nan", "steps_to_recover",
-           "max_abs_footstep_adjustment_m", "fall_time_s", "late_error")
-
-
-def save_runs(path, runs: dict[str, list[HoldoutRun]]) -> None:
+def save_runs(path, runs: dict) -> None:
     """Per-rollout results of held-out sweeps as one ``.npz`` (atomically), configurations included."""
-    import json
-
     from sweeps.runner import save_npz_atomic
 
     arrays = {}
     for name, lst in runs.items():
         for r in lst:
             tag = f"{name}/{r.config.direction}"
-            arrays.update({f"{tag}/{k}": np.asarray(r.results[k]) for k in _FIELDS if k in r.results})
+            arrays.update({f"{tag}/{k}": np.asarray(v) for k, v in r.results.items() if k != "reason"})
             arrays[f"{tag}/config"] = np.asarray(json.dumps(r.config.to_dict()))
     save_npz_atomic(path, arrays)
 
 
-def load_runs(path) -> dict[str, list[HoldoutRun]]:
+def load_runs(path) -> dict:
     """The inverse of :func:`save_runs` (timing left empty)."""
-    import json
+    from sweeps.runner import SweepRun, failure_reason
 
-    runs: dict[str, list[HoldoutRun]] = {}
+    runs: dict[str, list] = {}
     with np.load(path) as z:
-        tags = sorted({k.rsplit("/", 1)[0] for k in z.files}, key=lambda t: list(z.files).index(f"{t}/index"))
+        tags = list(dict.fromkeys(k.rsplit("/", 1)[0] for k in z.files))
         for tag in tags:
-            cfg = json.loads(str(z[f"{tag}/config"]))
-            cfg["phases"], cfg["impulses_ns"] = tuple(cfg["phases"]), tuple(cfg["impulses_ns"])
-            if cfg.get("deadzone") is not None:
-                cfg["deadzone"] = tuple(cfg["deadzone"])
-            res = {k: z[f"{tag}/{k}"] for k in _FIELDS if f"{tag}/{k}" in z.files}
-            res["reason"] = np.where(res["nan"], "nan", np.where(res["fell"], "fell", ""))
-            runs.setdefault(tag.split("/")[0], []).append(HoldoutRun(SweepConfig(**cfg), res, {}))
+            cfg = SweepConfig.from_dict(json.loads(str(z[f"{tag}/config"])))
+            res = {k.rsplit("/", 1)[1]: z[k] for k in z.files if k.rsplit("/", 1)[0] == tag and not k.endswith("/config")}
+            res["reason"] = failure_reason(res["fell"], res["nan"])
+            runs.setdefault(tag.split("/")[0], []).append(SweepRun(cfg, res, {}))
     return runs
 
+
+def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: bool = True, resume: bool = True,
+                force: bool = False, **grid) -> dict:
+    """The held-out sweeps of the seed's and the tuned overrides of ``record``; write the outputs.
+
+    Writes to ``out``: ``holdout/<set>/<direction>/`` (each an ordinary sweep folder), ``holdout.json``
+    (the comparison, the grid and the overrides), ``holdout.npz`` and ``holdout.png``.
+
+    Args:
+        record: a ``coman-sweep tune`` record.
+        out: the tuning output folder.
+        model: the model of the sweeps (default: the record's plant).
+        progress: progress bars on stderr.
+        resume: keep finished chunks of the same sweeps (a re-run redoes nothing finished).
+        force: overwrite folders that hold other sweeps.
+        **grid: overrides of the model's held-out grid (``SweepConfig`` fields and ``directions``).
+
+    Returns:
+        ``{"table": compare(...), "runs": {set: [SweepRun, ...]}}``.
+
+    Raises:
+        GridError: a bad grid or override. SweepConflict: a folder holding another sweep, without ``force``.
+    """
+    from sweeps.runner import run_sweep, save_text_atomic, strict_json
+
+    out = Path(out)
+    model = model or record["plant"]
+    sets = {name: record[f"overrides_{which}"] for name, which in zip(SETS, ("before", "after"))}
+    configs = {name: holdout_configs(record, model, ov, **grid) for name, ov in sets.items()}
+    runs = {}
+    for name, cfgs in configs.items():
+        runs[name] = []
+        for c in cfgs:
+            folder = out / "holdout" / name / c.direction
+            run = run_sweep(c, folder, resume=resume, force=force, progress=progress,
+                            desc=f"held-out {model} {name}/{c.direction}")
+            report.write_outputs(folder, run)
+            runs[name].append(run)
+    table = compare(runs)
+    for name in table:
+        table[name]["wall_s"] = float(sum(r.timing["wall_s"] for r in runs[name]))
+    save_text_atomic(out / "holdout.json", strict_json(dict(table, model=model, grid=dict(grid))))
+    save_runs(out / "holdout.npz", runs)
+    plot_holdout(out / "holdout.png", runs)
+    return dict(table=table, runs=runs)
+
+
+def format_table(table: dict) -> str:
+    """One line per set: recovery rate, mean steps to recover, the weakest phase per direction."""
+    lines = []
+    for name in SETS:
+        t = table[name]
+        steps = "-" if t["mean_steps_to_recover"] is None else f"{t['mean_steps_to_recover']:.2f}"
+        weakest = []
+        for d in t["per_direction"]:
+            best = [r["max_recovered_impulse_ns"] for r in d["per_phase"]]
+            weakest.append(f"{d['direction']} {min(v or 0.0 for v in best):g}")
+        lines.append(f"  held-out {t['model']} grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} "
+                     f"recovered; {t['settled']} pushed walks settled, after {steps} steps on average; "
+                     f"largest impulse recovered at the weakest phase (N s): {', '.join(weakest)}")
+    return "\n".join(lines)
+
+
+__all__ = ["SETS", "compare", "format_table", "holdout_configs", "load_overrides", "load_runs",
+           "plot_holdout", "run_holdout", "save_runs", "summary", "transfer_overrides"]

@@ -26,8 +26,6 @@ the constants valid.
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
-
 import dataclasses
 from typing import NamedTuple
 

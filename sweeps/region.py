@@ -24,8 +24,6 @@ batch; finished lanes ride along as padding, not counted.
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
-
 import functools
 import math
 import time
@@ -35,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxlp import control
 from jaxlp.params import ThreeLPParams
 from jaxlp.simulate import Push, SimSpec, simulate
 from sweeps.objective import Constants, failure_margin, sensing_of
@@ -51,6 +50,8 @@ class RegionSpec(NamedTuple):
         temperature: soft-minimum temperature of the margin, in ``h1`` (its
             root lies at most ``temperature log(n_ticks) / |dm/dJ|`` below the fall boundary).
         sensing: measurements through noise, bias and the filters (needs constants).
+        weight_scale: multipliers of the DLQR weights ``(position, velocity, torque)`` of exact sensing
+            (with sensing, the constants' own scales).
     """
 
     controller: str = "time-projection"
@@ -60,6 +61,7 @@ class RegionSpec(NamedTuple):
     push_duration_s: float = 0.1
     temperature: float = 1e-4
     sensing: bool = False
+    weight_scale: tuple = (1.0, 1.0, 1.0)
 
     def sim_spec(self) -> SimSpec:
         return SimSpec(step_time_s=self.step_time_s, n_steps=self.n_steps, controller=self.controller,
@@ -96,7 +98,10 @@ def _rollout(params: ThreeLPParams, spec: RegionSpec, constants, lateral, lane: 
     push = Push(start_s=(spec.push_step + phase) * spec.step_time_s, duration_s=jnp.asarray(spec.push_duration_s, dtype),
                 force_n=impulse_ns / spec.push_duration_s, direction_rad=lane.direction_rad.astype(dtype))
     sensing = sensing_of(constants, lateral, lane.noise_std_m, lane.bias_m) if spec.sensing else None
-    r = simulate(params, push, spec.sim_spec(), sensing=sensing, key=lane.key)
+    scale = constants.weight_scale if spec.sensing else jnp.asarray(spec.weight_scale, dtype)
+    w = control.default_weights(params)
+    weights = control.LQRWeights(w.position * scale[0], w.velocity * scale[1], w.torque * scale[2])
+    r = simulate(params, push, spec.sim_spec(), weights=weights, sensing=sensing, key=lane.key)
     return failure_margin(params, r, spec, temperature=spec.temperature), r.fell
 
 

@@ -15,8 +15,6 @@ runs in ``OUT/map-<direction>/`` (resumable).
 
 from __future__ import annotations
 
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
-
 import argparse
 import io
 import json
@@ -29,7 +27,8 @@ import numpy as np
 from sweeps.grid import DIRECTIONS_RAD, GridError, parse_impulses, parse_phases
 
 HELP = "largest recoverable impulse per push timing: safeguarded Newton on the margin vs bisection"
-CONTROLLERS_3LP = ("time-projection", "dlqr", "open-loop")
+CONTROLLERS_3LP = ("time-projection", "dlqr", "open-loop")  # the 3lp model's (sweeps.models.threelp.COMPARE)
+SETTABLE = ("lqr_weight_scale",)  # --set: the filter constants of the sensing regions come from --constants
 
 
 def _conv(parse):
@@ -61,6 +60,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="controller of the boundary-over-basin-map figure")
     p.add_argument("--controllers", type=_names(CONTROLLERS_3LP, "controllers"), default=CONTROLLERS_3LP,
                    help="controllers of the regions figure (comma-separated)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting of the 3LP controllers: lqr_weight_scale=P,V,T (the DLQR weight multipliers)")
     p.add_argument("--phases", type=_conv(parse_phases), default=parse_phases("32"),
                    help="push timings: a count N or a list in [0, 1) (default 32)")
     p.add_argument("--impulses", type=_conv(parse_impulses), default=parse_impulses("0:20:81"),
@@ -89,6 +90,17 @@ def _check(args) -> dict | None:
         raise ValueError(f"--draws must be >= 1, got {args.draws}")
     if args.tol is not None and not args.tol > 0:
         raise ValueError(f"--tol must be positive, got {args.tol}")
+    from mjx_coman.controllers import Controller, parse_overrides
+    from sweeps.models.threelp import SETTINGS
+
+    args.overrides = parse_overrides(Controller("3lp", None, None, None, None, SETTINGS), args.set)
+    for key in args.overrides:
+        if key not in SETTABLE:
+            raise ValueError(f"--set {key}: region takes {', '.join(SETTABLE)} (the filter constants come from "
+                             "--constants)")
+    ws = args.overrides.get("lqr_weight_scale", (1.0, 1.0, 1.0))
+    if len(ws) != 3 or not all(np.isfinite(ws)) or min(ws) <= 0:
+        raise ValueError(f"--set lqr_weight_scale={list(ws)} must be 3 positive numbers")
     if args.constants is None:
         return None
     try:
@@ -224,7 +236,8 @@ def run(args, parser) -> int:
     tol = args.tol or 0.5 * float(np.min(np.diff(impulses)))
     dirs = tuple(args.directions)
     lanes = R.make_lanes([DIRECTIONS_RAD[d] for d in dirs])
-    spec = R.RegionSpec(controller=args.controller, n_steps=args.n_steps)
+    spec = R.RegionSpec(controller=args.controller, n_steps=args.n_steps,
+                        weight_scale=tuple(float(v) for v in args.overrides.get("lqr_weight_scale", (1.0, 1.0, 1.0))))
     main = _boundaries(params, spec, lanes, phases, impulses, tol)
     same = R.same_within_grid(main["newton"], main["bisection"])
     maps = {}
@@ -234,7 +247,8 @@ def run(args, parser) -> int:
 
         for d in dirs:
             cfg = SweepConfig(model="3lp", controller=args.controller, phases=tuple(phases),
-                              impulses_ns=tuple(impulses), direction=d, n_steps=args.n_steps, push_step=2)
+                              impulses_ns=tuple(impulses), direction=d, n_steps=args.n_steps,
+                              push_step=2).with_overrides(args.overrides).validate()
             maps[d] = run_sweep(cfg, out / f"map-{d}", resume=True, force=True, progress=not args.no_progress,
                                 desc=f"map {d}")
     save_bytes_atomic(out / "boundary.png", boundary_figure(maps, main, dirs, args.controller))

@@ -8,16 +8,21 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from pathlib import Path
 
 import numpy as np
 
 from sweeps.grid import SweepConfig
-from sweeps.runner import SweepRun, save_bytes_atomic, save_npz_atomic, save_text_atomic
+from sweeps.runner import SweepRun, save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
 
 CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
                "max_abs_footstep_adjustment_m", "fall_time_s", "reason")
+_BASE = set(CSV_COLUMNS) | {"nan"}
+
+
+def extra_columns(results: dict) -> list[str]:
+    """The model's further per-rollout outputs (``RolloutOutputs.extra``), sorted."""
+    return sorted(k for k in results if k not in _BASE)
 
 
 def recovered(results: dict) -> np.ndarray:
@@ -50,17 +55,37 @@ def per_phase(config: SweepConfig, results: dict) -> list[dict]:
     return rows
 
 
+def _cycle_stats(res: dict, ok: np.ndarray) -> dict:
+    """How far the recovered pushed walks' final limit cycles lie from the unpushed walks' (mjx)."""
+    if "cycle_forward_mps" not in res:
+        return {}
+    cyc = np.stack([res["cycle_forward_mps"], res["cycle_lateral_mps"]], axis=1).astype(float)
+    pushed = res["impulse_ns"] > 0
+    ref_rows = ok & ~pushed & np.all(np.isfinite(cyc), axis=1)
+    if not ref_rows.any():
+        return dict(unpushed_cycle_mps=None, max_cycle_difference_mps=None)
+    ref = cyc[ref_rows].mean(axis=0)
+    rec = ok & pushed & (res["steps_to_recover"] >= 0)
+    diff = np.linalg.norm(cyc[rec] - ref, axis=1)
+    return dict(unpushed_cycle_mps=ref.tolist(), max_cycle_difference_mps=float(diff.max()) if diff.size else None)
+
+
 def summarize(run: SweepRun) -> dict:
     """The summary.json content of a sweep."""
     cfg, res = run.config, run.results
     ok = recovered(res)
     t = run.timing
+    pushed = res["impulse_ns"] > 0
+    s2r = res["steps_to_recover"][ok & pushed]
+    s2r = s2r[s2r >= 0]
     return dict(
-        model=cfg.model, controller=cfg.controller, direction=cfg.direction,
-        push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
+        model=cfg.model, controller=cfg.controller, controller_overrides=cfg.to_dict()["controller_overrides"],
+        direction=cfg.direction, push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
         rollouts=int(cfg.n_rollouts), recovery_rate=float(np.mean(ok)),
         fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
+        median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
         max_abs_footstep_adjustment_m=_max_or_none(res["max_abs_footstep_adjustment_m"][ok]),
+        **_cycle_stats(res, ok),
         per_phase=per_phase(cfg, res),
         wall_s=t["wall_s"], first_chunk_s=t["first_chunk_s"], run_s=t["run_s"],
         rollouts_per_s=t["rollouts_per_s"], env_steps_per_s=t["env_steps_per_s"],
@@ -75,10 +100,11 @@ def summarize(run: SweepRun) -> dict:
 
 
 def results_csv(config: SweepConfig, results: dict) -> str:
-    """One CSV row per rollout."""
+    """One CSV row per rollout (the model's extra outputs as further columns)."""
     buf = io.StringIO()
     w = csv.writer(buf)
-    w.writerow(CSV_COLUMNS)
+    extra = extra_columns(results)
+    w.writerow((*CSV_COLUMNS, *extra))
     force = np.asarray(results["impulse_ns"]) / config.push_duration_s
     for i in range(len(results["index"])):
         w.writerow([
@@ -86,6 +112,7 @@ def results_csv(config: SweepConfig, results: dict) -> str:
             f"{force[i]:.6g}", f"{results['direction_rad'][i]:.6g}", int(results["fell"][i]),
             int(results["steps_to_recover"][i]), f"{results['max_abs_footstep_adjustment_m'][i]:.6g}",
             f"{results['fall_time_s'][i]:.6g}", results["reason"][i],
+            *(f"{float(results[k][i]):.6g}" for k in extra),
         ])
     return buf.getvalue()
 
@@ -163,7 +190,7 @@ def write_outputs(out_dir: Path, run: SweepRun) -> dict:
     save_text_atomic(out_dir / "results.csv", results_csv(run.config, run.results))
     save_basin_png(out_dir / "basin.png", [run])
     summary = summarize(run)
-    save_text_atomic(out_dir / "summary.json", json.dumps(summary, indent=1))
+    save_text_atomic(out_dir / "summary.json", strict_json(summary))
     return summary
 
 

@@ -96,6 +96,23 @@ def save_bytes_atomic(path: Path, data: bytes) -> None:
     _atomic_write(Path(path), lambda f: f.write(data))
 
 
+def _finite_or_none(x):
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_none(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return _finite_or_none(x.item())
+    return x
+
+
+def strict_json(obj, indent: int = 1) -> str:
+    """JSON that strict parsers accept: non-finite numbers become ``null``."""
+    return json.dumps(_finite_or_none(obj), indent=indent, allow_nan=False)
+
+
 def stored_hash(out_dir: Path) -> str | None:
     """The config hash recorded in ``out_dir/config.json`` (``None``: none or unreadable)."""
     try:
@@ -135,7 +152,7 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool, force: 
         for name in RESULT_FILES:
             (out_dir / name).unlink(missing_ok=True)
     chunk_dir.mkdir(exist_ok=True)
-    save_text_atomic(out_dir / "config.json", json.dumps({"hash": config.hash(), "config": config.to_dict()}, indent=1))
+    save_text_atomic(out_dir / "config.json", strict_json({"hash": config.hash(), "config": config.to_dict()}))
     return chunk_dir
 
 
@@ -282,7 +299,9 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
                 first_s = dt
             else:
                 run_s += dt
-            arrays = _clean({name: np.asarray(v)[: hi - lo] for name, v in out._asdict().items()})
+            flat = {name: v for name, v in out._asdict().items() if name != "extra"}
+            flat.update(out.extra)
+            arrays = _clean({name: np.asarray(v)[: hi - lo] for name, v in flat.items()})
             computed[i] = arrays
             if writer:
                 save_npz_atomic(chunk_path(chunk_dir, i), dict(arrays, lo=np.asarray(lo), hi=np.asarray(hi)))

@@ -1,32 +1,27 @@
-"""``coman-sweep tune``: gradient tuning of the dead-zone and filter constants with optax.
+"""``coman-sweep tune``: gradient tuning of a controller's constants with optax, on either model.
 
-    coman-sweep tune [--plant 3lp] [--steps 60] [--lr 0.05] [--optimizer adam] [--batch 64] [--seed 0]
-                     [--n-steps 7] [--impulse-max 12] [--noise-min 0.0005] [--noise-max 0.0015] [--bias 0.002]
-                     [--tune-weights] [--holdout | --no-holdout] [--holdout-mjx] [--out tune-out] [--no-progress]
-                     [--x64]
+    coman-sweep tune [--plant 3lp|mjx] [--controller time-projection] [--set KEY=VALUE ...] [--tune deadzone,zeta]
+                     [--steps 60] [--lr 0.05] [--optimizer adam] [--batch 64] [--seed 0] [--n-steps 7]
+                     [--impulse-max 12] [--noise-min 0.0005] [--noise-max 0.0015] [--bias 0.002] [--tune-weights]
+                     [--holdout | --no-holdout] [--holdout-model mjx] [--out tune-out] [--no-progress] [--x64]
 
-Starts from the seed's constants (zeta 0.1, a 30-sample velocity window and
-the Figure 9 thresholds of the training sensors, :func:`sweeps.objective.seed_constants`)
-and minimises :func:`sweeps.objective.objective` over a fixed sample of
-``--batch`` scenarios with an optax optimiser (Adam by default) on the
-unconstrained coordinates. Keeps the iterate of lowest training loss. Writes
-to ``--out`` (each file atomically): ``tuned.json`` (constants before and
-after, training and held-out loss before and after, the history, the
-command) and ``loss.png``; with ``--holdout`` (default) it also runs held-out
-push grids (:mod:`sweeps.holdout`) with the seed and the tuned constants and
-adds ``holdout.json`` and ``holdout.png``. On ``--plant mjx`` (or with
-``--holdout-mjx``) the held-out pushes are MJX sweeps of the seed and the tuned
-constants (:mod:`sweeps.holdout_mjx`): ``holdout_mjx.json``, ``holdout_mjx.png``.
+The model (:mod:`sweeps.models`) poses the problem (:class:`sweeps.models.TuneProblem`: unconstrained
+coordinates, a loss and its gradient on fixed training and held-out scenarios); this module only
+runs the optimiser on it: an optax chain (NaN gradients zeroed, then Adam by default), keeping the
+iterate of lowest training loss. Writes to ``--out`` (each file atomically): ``tuned.json`` (the
+constants and the controller overrides before and after, training and held-out loss before and after,
+the history, the command) and ``loss.png``; with ``--holdout`` (default) it then runs held-out sweeps
+of the seed's and the tuned overrides (:mod:`sweeps.holdout`) on the same model, or on
+``--holdout-model``.
 """
 
 from __future__ import annotations
-
-import jaxlp  # noqa: F401  (XLA CPU flags before JAX starts)
 
 import argparse
 import dataclasses
 import io
 import json
+import math
 import shlex
 import sys
 import time
@@ -43,31 +38,40 @@ class TuneConfig:
     """Everything that decides a tuning run (plain values).
 
     Attributes:
-        plant: ``"3lp"`` (exact gradients through the 3LP plant and its sensor model) or ``"mjx"``.
-        robot: 3LP parameter preset.
-        controller: walking controller whose constants are tuned.
+        plant: the model tuned on (``"3lp"``: exact gradients through the 3LP plant and its sensor model;
+            ``"mjx"``: forward mode through the contact-rich walk).
+        robot: 3LP parameter preset (3lp).
+        controller: the controller whose constants are tuned (a name of the model).
+        controller_overrides: ``((setting, value), ...)``: its other settings (mjx).
+        tunables: the settings tuned (mjx; default ``deadzone``, ``zeta``).
         steps: optimiser steps.
-        learning_rate: optimiser step size in the unconstrained coordinates (log / logit).
+        learning_rate: optimiser step size in the unconstrained coordinates.
         optimizer: ``adam``, ``adamw`` or ``sgd`` (momentum 0.9).
-        batch: training scenarios (a fixed sample).
+        batch: training scenarios (a fixed sample; mjx: at most 2 pushes).
         seed: PRNG seed of the training scenarios (held-out: ``seed + 1``).
-        n_steps: phases per training rollout (pushes in step 2).
-        impulse_max_ns: training impulses uniform in [0, this].
-        noise_min_m, noise_max_m: white sensor noise std range, m.
-        bias_std_m: per-rollout systematic sagittal bias std, m.
-        tune_weights: also tune the DLQR weight scales.
+        n_steps: phases per training rollout (3lp; pushes in step 2).
+        push_step: walking step pushed (mjx).
+        speed_mps: commanded speed (mjx).
+        impulse_max_ns: training impulses up to this, N s.
+        noise_min_m, noise_max_m: white sensor noise std range, m (3lp).
+        bias_std_m: per-rollout systematic sagittal bias std, m (3lp).
+        tune_weights: also tune the DLQR weight scales (3lp).
         x64: 64-bit floats.
     """
 
     plant: str = "3lp"
     robot: str = "coman"
     controller: str = "time-projection"
+    controller_overrides: tuple = ()
+    tunables: tuple = ()
     steps: int = 60
     learning_rate: float = 0.05
     optimizer: str = "adam"
     batch: int = 64
     seed: int = 0
     n_steps: int = 7
+    push_step: int = 1
+    speed_mps: float = 0.0
     impulse_max_ns: float = 12.0
     noise_min_m: float = 0.5e-3
     noise_max_m: float = 1.5e-3
@@ -81,13 +85,16 @@ class TuneConfig:
             raise ValueError(f"unknown plant {self.plant!r}; choose one of {', '.join(PLANTS)}")
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"unknown optimizer {self.optimizer!r}; choose one of {', '.join(OPTIMIZERS)}")
-        if self.controller not in ("time-projection", "dlqr"):
-            raise ValueError(f"controller {self.controller!r} has no constants to tune; use time-projection or dlqr")
         for name in ("steps", "batch"):
             if not getattr(self, name) >= 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if not self.n_steps >= 4:
-            raise ValueError(f"n_steps must be >= 4 (pushes come in step 2), got {self.n_steps}")
+        if not 4 <= self.n_steps <= 100:
+            raise ValueError(f"n_steps must lie in [4, 100] (pushes come in step 2), got {self.n_steps}")
+        if not 0 <= self.push_step <= 20:
+            raise ValueError(f"push_step must lie in [0, 20], got {self.push_step}")
+        for name in ("learning_rate", "impulse_max_ns", "noise_min_m", "noise_max_m", "bias_std_m", "speed_mps"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be finite, got {getattr(self, name)}")
         if not self.learning_rate > 0:
             raise ValueError(f"learning_rate must be positive, got {self.learning_rate}")
         for name in ("impulse_max_ns", "noise_min_m", "bias_std_m"):
@@ -95,20 +102,12 @@ class TuneConfig:
                 raise ValueError(f"{name} must be non-negative, got {getattr(self, name)}")
         if not self.noise_max_m >= self.noise_min_m:
             raise ValueError(f"noise_max_m={self.noise_max_m} must be >= noise_min_m={self.noise_min_m}")
+        if self.plant == "3lp" and self.controller not in ("time-projection", "dlqr"):
+            raise ValueError(f"controller {self.controller!r} has no constants to tune on 3lp; "
+                             "use time-projection or dlqr")
+        if self.plant == "3lp" and (self.controller_overrides or self.tunables):
+            raise ValueError("--set and --tune apply to --plant mjx (3lp tunes the dead-zones, zeta and the window)")
         return self
-
-    def objective_spec(self):
-        from sweeps.objective import ObjectiveSpec
-
-        return ObjectiveSpec(controller=self.controller, n_steps=self.n_steps, push_step=2,
-                             tune_weights=self.tune_weights)
-
-    def distribution(self):
-        from sweeps.objective import ScenarioDistribution
-
-        return ScenarioDistribution(impulse_max_ns=self.impulse_max_ns,
-                                    noise_std_m=(self.noise_min_m, self.noise_max_m),
-                                    bias_std_m=self.bias_std_m).validate()
 
 
 def _optimizer(config: TuneConfig):
@@ -121,48 +120,37 @@ def _optimizer(config: TuneConfig):
 
 
 def tune(config: TuneConfig, progress: bool = True) -> dict:
-    """Run the optimisation on the 3LP plant; return a JSON-ready record (no files written).
+    """Run the optimisation on the model's problem; return a JSON-ready record (no files written).
 
     Raises:
-        ValueError: a bad configuration; ``--plant mjx`` when the MJX rollout is missing.
+        ValueError: a bad configuration (naming the bad value).
     """
-    config.validate()
-    if config.plant == "mjx":
-        from sweeps.tune_mjx import tune_mjx
-
-        return tune_mjx(config, progress=progress)
     import jax
     import optax
 
-    from jaxlp.presets import get_params
-    from sweeps import objective as O
+    from sweeps.models import get_model
 
+    config.validate()
+    model = get_model(config.plant)
     t_start = time.perf_counter()
     with jax.enable_x64(config.x64):
-        params = get_params(config.robot)
-        spec = config.objective_spec()
-        dist = config.distribution()
-        train = O.sample_scenarios(jax.random.PRNGKey(config.seed), config.batch, dist)
-        held = O.sample_scenarios(jax.random.PRNGKey(config.seed + 1), config.batch, dist)
-        seed_c, lateral = jax.jit(lambda s: O.seed_constants(params, spec, s))(train)
-        raw = O.to_raw(seed_c, spec.window_max)
-        # one compiled function for training and held-out scenarios (same batch size)
-        value_grad = jax.jit(jax.value_and_grad(lambda r, s: O.objective(r, params, lateral, s, spec), has_aux=True))
+        problem = model.tune_problem(config)
+        raw = raw0 = problem.raw0
         opt = _optimizer(config)
         state = opt.init(raw)
-        history = dict(loss=[], fall=[], error=[], fell_rate=[], grad_norm=[], step_s=[])
+        history = dict(loss=[], fell_rate=[], grad_norm=[], step_s=[])
         best = (np.inf, raw, -1)
         bar = _bar(config.steps, progress)
         for step in range(config.steps + 1):  # the last pass only evaluates the final iterate
             t0 = time.perf_counter()
-            (loss, costs), grad = value_grad(raw, train)
+            (loss, terms), grad = problem.value_and_grad(raw, "train")
             loss = float(loss)
             history["loss"].append(loss)
-            history["fall"].append(float(np.mean(costs.fall)))
-            history["error"].append(float(np.mean(costs.error)))
-            history["fell_rate"].append(float(np.mean(costs.fell)))
-            gnorm = float(optax.tree.norm(grad))
-            history["grad_norm"].append(gnorm)
+            history["fell_rate"].append(float(np.mean(terms["fell"])))
+            for k, v in terms.items():
+                if k != "fell":
+                    history.setdefault(k, []).append(float(np.mean(v)))
+            history["grad_norm"].append(float(optax.tree.norm(grad)))
             if np.isfinite(loss) and loss < best[0]:
                 best = (loss, raw, step)
             if step == config.steps:
@@ -173,21 +161,32 @@ def tune(config: TuneConfig, progress: bool = True) -> dict:
             bar.set_postfix(loss=f"{loss:.4f}", fell=f"{history['fell_rate'][-1]:.0%}")
             bar.update(1)
         bar.close()
-        tuned_raw = best[1]
-        tuned = O.from_raw(tuned_raw, spec.window_max)
-        (held_before, held_costs_before), _ = value_grad(O.to_raw(seed_c, spec.window_max), held)
-        (held_after, held_costs_after), _ = value_grad(tuned_raw, held)
+        tuned = best[1]
+        (held_before, held_terms_before), _ = problem.value_and_grad(raw0, "held")
+        (held_after, held_terms_after), _ = problem.value_and_grad(tuned, "held")
+        before, after = problem.constants(raw0), problem.constants(tuned)
+        overrides_before, overrides_after = problem.overrides(raw0), problem.overrides(tuned)
     return dict(
-        plant=config.plant, config=dataclasses.asdict(config),
-        constants_before=seed_c.as_dict(), constants_after=tuned.as_dict(),
-        lateral_deadzone=[float(v) for v in np.asarray(lateral)],
+        plant=config.plant, controller=config.controller, config=_jsonable(dataclasses.asdict(config)),
+        constants_before=before, constants_after=after,
+        overrides_before=_jsonable(overrides_before), overrides_after=_jsonable(overrides_after),
         loss_before=history["loss"][0], loss_after=float(best[0]), best_step=int(best[2]),
         fell_rate_before=history["fell_rate"][0], fell_rate_after=history["fell_rate"][best[2]],
         heldout_loss_before=float(held_before), heldout_loss_after=float(held_after),
-        heldout_fell_rate_before=float(np.mean(held_costs_before.fell)),
-        heldout_fell_rate_after=float(np.mean(held_costs_after.fell)),
-        error_weight=spec.error_weight, history=history, wall_s=time.perf_counter() - t_start,
+        heldout_fell_rate_before=float(np.mean(held_terms_before["fell"])),
+        heldout_fell_rate_after=float(np.mean(held_terms_after["fell"])),
+        history=history, wall_s=time.perf_counter() - t_start, **_jsonable(problem.info),
     )
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return x
 
 
 def _bar(total: int, enabled: bool):
@@ -198,7 +197,7 @@ def _bar(total: int, enabled: bool):
 
 
 def loss_png(record: dict) -> bytes:
-    """The loss curve (training loss, its fall and error terms, the share of training rollouts that fell)."""
+    """The loss curve (training loss and its terms, the share of training rollouts that fell)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -208,17 +207,18 @@ def loss_png(record: dict) -> bytes:
     steps = np.arange(len(h["loss"]))
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8))
     ax.plot(steps, h["loss"], "k-", label="training loss")
-    ax.plot(steps, h["fall"], "C3--", label="fall term (smooth)")
-    w = record.get("error_weight", 0.1)
-    ax.plot(steps, np.asarray(h["error"]) * w, "C0:", label=f"footstep-error term (x{w:g})")
-    ax.axhline(record["heldout_loss_before"], color="0.5", lw=0.8)
+    if "fall" in h:
+        ax.plot(steps, h["fall"], "C3--", label="fall term (smooth)")
+    if "error" in h:
+        w = record.get("error_weight", 1.0)
+        ax.plot(steps, np.asarray(h["error"]) * w, "C0:", label=f"footstep-error term (x{w:g})")
     ax.plot([0, steps[-1]], [record["heldout_loss_before"], record["heldout_loss_after"]], "s", color="0.4",
             label="held-out loss (seed, tuned)")
     ax.axvline(record["best_step"], color="C2", lw=0.8, label="kept iterate")
     ax.set_xlabel(f"{record['config']['optimizer']} step")
     ax.set_ylabel("loss")
     ax.legend(fontsize=7)
-    ax.set_title(f"{record['plant']}: tuning of the estimation constants")
+    ax.set_title(f"{record['plant']} / {record['controller']}: tuning")
     ax2.plot(steps, 100 * np.asarray(h["fell_rate"]), "C3-")
     ax2.set_xlabel(f"{record['config']['optimizer']} step")
     ax2.set_ylabel("training rollouts that fell, %")
@@ -229,126 +229,116 @@ def loss_png(record: dict) -> bytes:
     return buf.getvalue()
 
 
-def run_holdout_validation(record: dict, out: Path | None = None, **grid) -> dict:
-    """Held-out push grids with the seed and the tuned constants; returns ``holdout.compare`` plus the runs.
-
-    ``grid`` overrides :func:`sweeps.holdout.holdout_configs` arguments.
-    """
-    import jax
-    import jax.numpy as jnp
-
-    from sweeps import holdout
-    from sweeps.objective import constants_from_dict
-
-    cfg = record["config"]
-    grid.setdefault("noise_std_m", 0.5 * (cfg["noise_min_m"] + cfg["noise_max_m"]))
-    grid.setdefault("controller", cfg["controller"])
-    with jax.enable_x64(cfg["x64"]):
-        lateral = jnp.asarray(record["lateral_deadzone"])
-        sets = {"seed": constants_from_dict(record["constants_before"]),
-                "tuned": constants_from_dict(record["constants_after"])}
-        runs = {name: [holdout.run_holdout(c_cfg, c, lateral, cfg["bias_std_m"])
-                       for c_cfg in holdout.holdout_configs(**grid)] for name, c in sets.items()}
-    table = holdout.compare(runs)
-    if out is not None:
-        from sweeps.runner import save_text_atomic
-
-        holdout.plot_holdout(Path(out) / "holdout.png", runs)
-        holdout.save_runs(Path(out) / "holdout.npz", runs)
-        save_text_atomic(Path(out) / "holdout.json", json.dumps(dict(table, grid=_jsonable(grid)), indent=1))
-    return dict(table=table, runs=runs)
-
-
-def _jsonable(d: dict) -> dict:
-    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
-
-
 def write_outputs(out: Path, record: dict) -> None:
-    """``tuned.json`` and ``loss.png`` in ``out``, each written atomically."""
-    from sweeps.runner import save_bytes_atomic, save_text_atomic
+    """``tuned.json`` and ``loss.png`` in ``out``, each written atomically (strict JSON)."""
+    from sweeps.runner import save_bytes_atomic, save_text_atomic, strict_json
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    save_text_atomic(out / "tuned.json", json.dumps(record, indent=1))
+    save_text_atomic(out / "tuned.json", strict_json(record))
     save_bytes_atomic(out / "loss.png", loss_png(record))
 
 
-HELP = "tune the dead-zone and filter constants by gradient (optax)"
+HELP = "tune a controller's constants by gradient (optax) on 3lp or mjx"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``coman-sweep tune`` (registered by :mod:`sweeps.cli`)."""
     d = TuneConfig()
-    p.add_argument("--plant", choices=PLANTS, default=d.plant, help="3lp (exact gradients) or mjx")
-    p.add_argument("--robot", default=d.robot, help="3LP parameter preset")
-    p.add_argument("--controller", choices=("time-projection", "dlqr"), default=d.controller)
+    p.add_argument("--plant", choices=PLANTS, default=d.plant, help="3lp (exact gradients) or mjx (forward mode)")
+    p.add_argument("--robot", default=d.robot, help="3LP parameter preset (3lp)")
+    p.add_argument("--controller", default=d.controller, help="the controller tuned (a name of the plant)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="its other settings (mjx)")
+    p.add_argument("--tune", default=None, help="comma-separated tunable settings (mjx; default deadzone,zeta)")
     p.add_argument("--steps", type=int, default=d.steps, help=f"optimiser steps (default {d.steps})")
-    p.add_argument("--lr", type=float, default=d.learning_rate, help="learning rate in log/logit coordinates")
+    p.add_argument("--lr", type=float, default=d.learning_rate, help="learning rate in unconstrained coordinates")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=d.optimizer)
     p.add_argument("--batch", type=int, default=d.batch, help="training scenarios (fixed sample)")
     p.add_argument("--seed", type=int, default=d.seed)
-    p.add_argument("--n-steps", type=int, default=d.n_steps, help="steps per training rollout")
+    p.add_argument("--n-steps", type=int, default=d.n_steps, help="steps per training rollout (3lp)")
+    p.add_argument("--push-step", type=int, default=d.push_step, help="walking step pushed (mjx)")
     p.add_argument("--impulse-max", type=float, default=d.impulse_max_ns, help="largest training impulse, N s")
-    p.add_argument("--noise-min", type=float, default=d.noise_min_m, help="sensor noise std range, m")
+    p.add_argument("--noise-min", type=float, default=d.noise_min_m, help="sensor noise std range, m (3lp)")
     p.add_argument("--noise-max", type=float, default=d.noise_max_m)
-    p.add_argument("--bias", type=float, default=d.bias_std_m, help="std of the per-rollout sensor bias, m")
-    p.add_argument("--tune-weights", action="store_true", help="also tune the DLQR weight scales")
+    p.add_argument("--bias", type=float, default=d.bias_std_m, help="std of the per-rollout sensor bias, m (3lp)")
+    p.add_argument("--tune-weights", action="store_true", help="also tune the DLQR weight scales (3lp)")
     p.add_argument("--holdout", action=argparse.BooleanOptionalAction, default=True,
-                   help="validate on held-out push grids (default on): 3LP grids for --plant 3lp, "
-                        "MJX sweeps for --plant mjx")
-    p.add_argument("--holdout-mjx", action="store_true",
-                   help="--plant 3lp: also validate the tuned constants on held-out MJX sweeps")
+                   help="validate on held-out sweeps (default on)")
+    p.add_argument("--holdout-model", choices=PLANTS, default=None,
+                   help="the model of the held-out sweeps (default: the plant)")
     p.add_argument("--out", type=Path, default=Path("tune-out"), help="output folder (default tune-out)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--x64", action="store_true", help="64-bit floats")
 
 
 def config_from_args(args) -> TuneConfig:
-    return TuneConfig(plant=args.plant, robot=args.robot, controller=args.controller, steps=args.steps,
+    from sweeps.grid import freeze_overrides
+
+    overrides = ()
+    if args.set:
+        from mjx_coman import controllers
+
+        if args.plant != "mjx":
+            raise ValueError("--set applies to --plant mjx")
+        overrides = freeze_overrides(controllers.parse_overrides(controllers.get(args.controller), args.set))
+    tunables = tuple(v.strip() for v in args.tune.split(",") if v.strip()) if args.tune else ()
+    if args.tune is not None and not tunables:
+        raise ValueError("--tune is empty")
+    if args.plant == "mjx":
+        from mjx_coman import controllers
+
+        controllers.get(args.controller)  # ValueError listing the known names
+    return TuneConfig(plant=args.plant, robot=args.robot, controller=args.controller,
+                      controller_overrides=overrides, tunables=tunables, steps=args.steps,
                       learning_rate=args.lr, optimizer=args.optimizer, batch=args.batch, seed=args.seed,
-                      n_steps=args.n_steps, impulse_max_ns=args.impulse_max, noise_min_m=args.noise_min,
-                      noise_max_m=args.noise_max, bias_std_m=args.bias, tune_weights=args.tune_weights,
-                      x64=args.x64).validate()
+                      n_steps=args.n_steps, push_step=args.push_step, impulse_max_ns=args.impulse_max,
+                      noise_min_m=args.noise_min, noise_max_m=args.noise_max, bias_std_m=args.bias,
+                      tune_weights=args.tune_weights, x64=args.x64).validate()
+
+
+def _check_out(out: Path) -> None:
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a folder")
+    parent = out if out.exists() else out.parent
+    while not parent.exists():
+        parent = parent.parent
+    import os
+
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"--out {out}: cannot write into {parent}")
 
 
 def run(args, parser) -> int:
     """Run ``coman-sweep tune``; bad arguments exit 2 with one line (``parser.error``)."""
     try:
         config = config_from_args(args)
-        from jaxlp.presets import get_params
+        _check_out(args.out)
+        if config.plant == "3lp":
+            from jaxlp.presets import get_params
 
-        get_params(config.robot)
-        if config.plant == "mjx" or args.holdout_mjx:
-            from sweeps.tune_mjx import check_available
-
-            check_available()
-    except (ValueError, RuntimeError, ImportError) as e:
-        parser.error(str(e).splitlines()[0])
-    record = tune(config, progress=not args.no_progress)
+            get_params(config.robot)
+    except (ValueError, RuntimeError) as e:
+        parser.error(" ".join(str(e).split()))
+    try:
+        record = tune(config, progress=not args.no_progress)
+    except ValueError as e:
+        parser.error(" ".join(str(e).split()))
     record["command"] = "coman-sweep " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     write_outputs(args.out, record)
     c0, c1 = record["constants_before"], record["constants_after"]
-    print(f"{config.plant}: loss {record['loss_before']:.4f} -> {record['loss_after']:.4f} (step "
-          f"{record['best_step']}); held-out {record['heldout_loss_before']:.4f} -> "
+    print(f"{config.plant}/{config.controller}: loss {record['loss_before']:.4f} -> {record['loss_after']:.4f} "
+          f"(step {record['best_step']}); held-out {record['heldout_loss_before']:.4f} -> "
           f"{record['heldout_loss_after']:.4f}; training falls {record['fell_rate_before']:.0%} -> "
           f"{record['fell_rate_after']:.0%}; {record['wall_s']:.1f} s")
     for k in c0:
         print(f"  {k:30s} {c0[k]:10.4g} -> {c1[k]:10.4g}")
-    if args.holdout and config.plant == "3lp":
-        table = run_holdout_validation(record, args.out)["table"]
-        for name, t in table.items():
-            steps = "-" if t["mean_steps_to_recover"] is None else f"{t['mean_steps_to_recover']:.2f}"
-            print(f"  held-out grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} recovered; "
-                  f"{t['settled_within_tol']} pushed walks settled under {t['recover_tol']:g}, after {steps} steps "
-                  f"on average; median late landing error {t['late_error_median']:.3f}")
-        print(f"wrote {args.out}/tuned.json, loss.png, holdout.json, holdout.npz, holdout.png")
-    else:
-        print(f"wrote {args.out}/tuned.json, loss.png")
-    if (args.holdout and config.plant == "mjx") or args.holdout_mjx:
-        from sweeps import holdout_mjx
+    print(f"wrote {args.out}/tuned.json, loss.png")
+    if args.holdout:
+        from sweeps import holdout
 
-        table = holdout_mjx.run_mjx_holdout(record, args.out, progress=not args.no_progress)["table"]
-        print(holdout_mjx.format_table(table))
-        print(f"wrote {args.out}/holdout_mjx.json, holdout_mjx.npz, holdout_mjx.png and the sweeps in "
-              f"{args.out}/holdout-mjx/")
+        table = holdout.run_holdout(record, args.out, model=args.holdout_model or config.plant,
+                                    progress=not args.no_progress)["table"]
+        print(holdout.format_table(table))
+        print(f"wrote {args.out}/holdout.json, holdout.npz, holdout.png and the sweeps in {args.out}/holdout/")
     return 0

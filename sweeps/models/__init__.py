@@ -1,22 +1,24 @@
-"""The rollout registry: one pure function per model, ``rollout(config, inputs, aux) -> outputs``.
+"""The model protocol: one interface for every plant a sweep or a tuning run can push, and their registry.
 
-A rollout simulates one push on one robot and returns a few scalars
-(:class:`RolloutOutputs`). The runner vmaps it over a chunk of rollouts, jits
-it once per configuration and shards the chunk over the devices, so a model
-only has to be a pure, jittable function of scalars. A model may also have a
-``prepare(config, inputs) -> aux`` step, run on one device before the sharded
-call, whose per-rollout outputs (leading axis = chunk rows) the rollout gets
-as ``aux`` (``None`` without one): the 3LP model designs each randomised
-robot's controller there, so that the batched LAPACK calls of that design stay
-out of the sharded call (on a CPU with several host devices, LAPACK's nested
-thread-pool parallelism inside concurrent device programs deadlocked).
+A model simulates one push on one robot under a named controller and returns
+a few scalars (:class:`RolloutOutputs`). The runner vmaps ``rollout`` over a
+chunk, jits it once per configuration and shards the chunk over the devices;
+the tuner (:mod:`sweeps.tune`) asks the model for a :class:`TuneProblem`; the
+held-out validation (:mod:`sweeps.holdout`) runs ordinary sweeps of it. A
+model may also have a ``prepare(config, inputs) -> aux`` step, run on one
+device before the sharded call, whose per-rollout outputs (leading axis =
+chunk rows) the rollout gets as ``aux`` (``None`` without one): the 3LP model
+designs each randomised robot's controller there, so that the batched LAPACK
+calls of that design stay out of the sharded call (on a CPU with several host
+devices, LAPACK's nested thread-pool parallelism inside concurrent device
+programs deadlocked).
 
 Registered models (their modules are imported on first use):
 
-* ``3lp``: the closed-loop 3LP simulation of :func:`jaxlp.simulate.simulate` (:mod:`sweeps.model_3lp`).
-* ``mjx``: COMAN in MuJoCo MJX under the walking controller of
-  :mod:`mjx_coman.walking` (:mod:`sweeps.model_mjx`); unavailable (exit 2 on
-  the command line) while ``mjx_coman.walking.rollout.walk`` does not exist.
+* ``3lp``: the closed-loop 3LP simulation of :func:`jaxlp.simulate.simulate`
+  under jaxlp's controllers (:mod:`sweeps.models.threelp`).
+* ``mjx``: COMAN in MuJoCo MJX under any controller of
+  :mod:`mjx_coman.controllers`, judged on ground truth (:mod:`sweeps.models.mjx`).
 """
 
 from __future__ import annotations
@@ -26,11 +28,11 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 
-from sweeps.grid import SweepConfig
+from sweeps.grid import GridError, SweepConfig
 
 
 class ModelUnavailable(RuntimeError):
-    """A registered model that cannot run yet (the command line exits 2)."""
+    """A registered model that cannot run (the command line exits 2)."""
 
 
 class RolloutInputs(NamedTuple):
@@ -56,10 +58,11 @@ class RolloutOutputs(NamedTuple):
 
     Attributes:
         fell: left the model's valid range (or went non-finite).
-        steps_to_recover: steps after the push until the error stays small (-1: never or fell).
-        max_abs_footstep_adjustment_m: largest |sagittal footstep adjustment|, m.
+        steps_to_recover: steps after the push until it is back to its gait (-1: never or fell; 0: unpushed).
+        max_abs_footstep_adjustment_m: largest footstep adjustment, m.
         fall_time_s: when it fell (``inf``: never).
         nan: the rollout went numerically bad.
+        extra: further per-rollout scalars of the model (``{name: scalar}``), kept in the results.
     """
 
     fell: jax.Array
@@ -67,6 +70,26 @@ class RolloutOutputs(NamedTuple):
     max_abs_footstep_adjustment_m: jax.Array
     fall_time_s: jax.Array
     nan: jax.Array
+    extra: dict = {}
+
+
+class TuneProblem(NamedTuple):
+    """What the tuner needs of a model: an objective of unconstrained coordinates on fixed scenarios.
+
+    Attributes:
+        raw0: the starting point (a pytree of arrays; the optimiser moves it).
+        value_and_grad: ``(raw, split) -> ((loss, terms), grad)`` with ``split`` ``"train"`` or ``"held"``;
+            ``terms`` a dict of per-scenario arrays with at least ``"fell"``.
+        constants: ``raw -> {name: float}`` the tuned constants in physical units (JSON).
+        overrides: ``raw -> {setting: value}`` the controller overrides they stand for.
+        info: extra JSON fields of the record (loss definition, scenarios, fixed constants).
+    """
+
+    raw0: Any
+    value_and_grad: Callable
+    constants: Callable[[Any], dict]
+    overrides: Callable[[Any], dict]
+    info: dict
 
 
 class Model(NamedTuple):
@@ -78,21 +101,32 @@ class Model(NamedTuple):
     Attributes:
         rollout: ``rollout(config, inputs, aux) -> RolloutOutputs`` (pure, jittable), or ``None``.
         ticks_per_rollout: ``ticks_per_rollout(config) -> int`` environment steps per rollout.
-        unavailable: why the model cannot run yet ("" when it can).
-        prepare: optional ``prepare(config, inputs) -> aux`` on a chunk's host arrays, run on one
-            device; ``aux`` is a pytree of arrays with the chunk's rows on the leading axis.
+        controllers: ``() -> tuple`` the controller names it runs (``compare``'s default first).
+        compare_default: ``() -> tuple`` the controllers ``compare`` runs by default.
+        settings: ``(controller) -> tuple[Setting, ...]`` a controller's settings (their defaults).
+        check: ``(config) -> None``: raises ``GridError`` naming a bad controller, override or field.
+        unavailable: why the model cannot run ("" when it can).
+        prepare: optional ``prepare(config, inputs) -> aux`` on a chunk's host arrays, run on one device.
         env_step_s: ``env_step_s(config) -> float``, the simulated time of one environment step.
+        tune_problem: optional ``(tune_config) -> TuneProblem``.
+        holdout_grid: the default held-out grid (``SweepConfig`` fields and ``directions``) of a tuning record.
     """
 
     rollout: Callable[[SweepConfig, RolloutInputs, Any], RolloutOutputs] | None
     ticks_per_rollout: Callable[[SweepConfig], int]
+    controllers: Callable[[], tuple[str, ...]] = lambda: ()
+    compare_default: Callable[[], tuple[str, ...]] = lambda: ()
+    settings: Callable[[str], tuple] = lambda name: ()
+    check: Callable[[SweepConfig], None] = lambda config: None
     unavailable: str = ""
     prepare: Callable[[SweepConfig, RolloutInputs], Any] | None = None
     env_step_s: Callable[[SweepConfig], float] | None = None
+    tune_problem: Callable[[Any], TuneProblem] | None = None
+    holdout_grid: Callable[[dict], dict] | None = None
 
 
 # name -> module whose ``load() -> Model`` builds the model (imported on first use)
-_MODULES = {"3lp": "sweeps.model_3lp", "mjx": "sweeps.model_mjx"}
+_MODULES = {"3lp": "sweeps.models.threelp", "mjx": "sweeps.models.mjx"}
 MODELS: dict[str, Model] = {}
 
 
@@ -110,14 +144,24 @@ def get_model(name: str) -> Model:
     """A runnable model.
 
     Raises:
-        ValueError: an unknown name.
-        ModelUnavailable: a registered model that cannot run yet.
+        GridError: an unknown name (listing the known ones).
+        ModelUnavailable: a registered model that cannot run.
     """
     if name not in MODELS:
         if name not in _MODULES:
-            raise ValueError(f"unknown model {name!r}; choose one of {', '.join(model_names())}")
+            raise GridError(f"unknown model {name!r}; choose one of {', '.join(model_names())}")
         MODELS[name] = importlib.import_module(_MODULES[name]).load()
     model = MODELS[name]
     if model.rollout is None:
         raise ModelUnavailable(model.unavailable or f"model {name!r} is not available")
     return model
+
+
+def check_settings(model: str, controller: str, settings, overrides: dict) -> dict:
+    """``overrides`` checked against a controller's settings: an unknown key is a ``GridError`` naming it."""
+    known = {s.name for s in settings}
+    for key in overrides:
+        if key not in known:
+            raise GridError(f"unknown setting {key!r} of controller {controller} (model {model}); "
+                            f"known: {', '.join(sorted(known))}")
+    return overrides

@@ -1,13 +1,18 @@
-"""The ``mjx`` sweep model: one pushed walk of COMAN in MuJoCo MJX (:func:`mjx_coman.walking.rollout.walk`).
+"""The ``mjx`` model: one pushed walk of COMAN in MuJoCo MJX under any registered controller, judged on ground truth.
 
-The walk starts from the crouched stance under the walking controller of
-:mod:`mjx_coman.walking.controller`, which first runs one start-up phase, so
-walking step ``k`` starts at ``(k + 1) * step_time_s``. The push, on the upper
-torso, starts at ``(push_step + 1 + phase) * step_time_s`` as in ``python -m
-mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts ``(n_steps +
-1) * step_time_s`` (the start-up phase and ``n_steps`` walking steps). The
-environment is :func:`mjx_coman.walking.rollout.walking_env_params` (the
-seed's gains with a stiffer ankle roll loop), when it exists.
+The controller is a name of :mod:`mjx_coman.controllers` with its settings
+overridden by ``controller_overrides`` (``--set``); its config is built once
+on the host per configuration. The walk (:func:`mjx_coman.rollout.walk`)
+starts from the controller's crouched stance; walking step ``k`` starts at
+the controller's ``first_step_s + k step_time_s`` (one start-up phase for
+the time-projection family), so the push, on the upper torso, starts at
+``first_step_s + (push_step + phase) step_time_s`` as in ``python -m
+mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts
+``first_step_s + n_steps step_time_s``. The environment is
+:func:`mjx_coman.rollout.walking_env_params` (the seed's gains with a stiffer
+ankle roll loop). Falls and steps to recover are the simulator's
+(:mod:`mjx_coman.ground_truth`); each rollout also records its touchdowns,
+mean speed and the limit cycle it ends in.
 
 Per rollout, from the rollout's own PRNG key (so results do not depend on
 chunking or devices), the simulated robot may differ from the nominal one the
@@ -20,47 +25,67 @@ controller was designed for:
   (0: noise-free; the 12-bit encoders always quantise);
 * ``encoder_offset_std_rad``: constant link encoder offsets ``N(0, std)`` per joint.
 
-The controller parameters are built once on the host by
-:func:`mjx_coman.walking.controller.make_controller_params`, with the
-configuration's estimation constants (``deadzone``, ``zeta``,
-``velocity_window``; e.g. tuned ones) where it sets them. Everything
-randomised is an array leaf of the environment parameters, built inside the
-vmapped rollout, which is the same as vmapping ``walk`` with the axes of
-:func:`mjx_coman.env.batch_axes` (``model_fields=("body_mass", "body_inertia")``).
+Everything randomised is an array leaf of the environment parameters, built
+inside the vmapped rollout, which is the same as vmapping ``walk`` with the
+axes of :func:`mjx_coman.env.batch_axes` (``model_fields=("body_mass", "body_inertia")``).
 
-While ``mjx_coman.walking.rollout`` does not exist, :func:`load` returns an
-unavailable model (the command line exits 2 naming it).
+Tuning (:func:`tune_problem`): forward-mode derivatives (``jax.jacfwd``:
+MJX's constraint solver runs a ``lax.while_loop``, which reverse mode cannot
+differentiate) of the ground-truth sway after a push with respect to the
+controller's tunable settings.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
-import io
+import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from sweeps.grid import SweepConfig
-from sweeps.models import Model, RolloutInputs, RolloutOutputs
-
-UNAVAILABLE = "model 'mjx': the MJX walking controller is not available yet ({}); use --model 3lp"
-CONTROL_PERIOD_S = 0.002
+from sweeps.grid import GridError, SweepConfig
+from sweeps.models import Model, RolloutInputs, RolloutOutputs, TuneProblem, check_settings
 
 
-def _walking():
-    """The walking controller and rollout modules (ImportError while they do not exist)."""
-    with contextlib.redirect_stdout(io.StringIO()):  # mujoco.mjx prints "Failed to import warp" without Warp
-        from mjx_coman.walking import controller, rollout
-    return controller, rollout
+def _controllers():
+    from mjx_coman import controllers
+
+    return controllers
+
+
+def _rollout_module():
+    from mjx_coman import rollout
+
+    return rollout
+
+
+def check(config: SweepConfig) -> None:
+    """The controller name, its overrides (values checked by building its config) and the walk's timing."""
+    ctrls = _controllers()
+    try:
+        ctrl = ctrls.get(config.controller)
+    except ValueError as e:
+        raise GridError(str(e)) from None
+    if ctrl.privileged:
+        raise GridError(f"controller {config.controller} reads the simulator's ground truth; sweeps judge "
+                        "controllers on what they measure")
+    check_settings("mjx", config.controller, ctrl.settings, config.overrides())
+    try:
+        _, cfg = ctrls.load(config.controller, config.overrides())
+        gait = ctrl.gait(cfg)
+        gait.check_joystick(config.speed_mps)
+    except ValueError as e:
+        raise GridError(f"controller {config.controller}: {e}") from None
+    if abs(gait.step_time_s - config.step_time_s) > 1e-9:
+        raise GridError(f"step_time_s={config.step_time_s} differs from controller {config.controller}'s "
+                        f"{gait.step_time_s:g} s (set its step time with --set, if it has one)")
 
 
 @functools.lru_cache(maxsize=4)
 def nominal_env(sensor_noise_scale: float):
     """The nominal robot's environment parameters with the sensor noise scaled (host-built, cached)."""
-    _, rollout_mod = _walking()  # first: imports mujoco.mjx quietly
-    from mjx_coman.env import make_env_params
     from mjx_coman.sensors import make_sensor_params
 
     with jax.ensure_compile_time_eval():
@@ -70,40 +95,33 @@ def nominal_env(sensor_noise_scale: float):
                                     gyro_noise_rad_per_s=float(d.gyro_noise_rad_per_s) * s,
                                     ft_force_noise_n=float(d.ft_force_noise_n) * s,
                                     ft_torque_noise_nm=float(d.ft_torque_noise_nm) * s)
-        if hasattr(rollout_mod, "walking_env_params"):
-            return dataclasses.replace(rollout_mod.walking_env_params(), sensor=sensor)
-        return make_env_params(control_period_s=CONTROL_PERIOD_S, sensor=sensor)
+        return dataclasses.replace(_rollout_module().walking_env_params(), sensor=sensor)
 
 
-@functools.lru_cache(maxsize=4)
-def nominal(config: SweepConfig):
-    """``(env_params, ctrl_params)`` of the nominal robot (host-built, cached per configuration)."""
-    controller, _ = _walking()
-    env = nominal_env(config.sensor_noise_scale)
-    constants = dict(deadzone=config.deadzone, zeta=config.zeta, window=config.velocity_window)
-    with jax.ensure_compile_time_eval():
-        ctrl = controller.make_controller_params(env, config.speed_mps, step_time_s=config.step_time_s,
-                                                 **{k: v for k, v in constants.items() if v is not None})
-    return env, ctrl
+def controller(config: SweepConfig):
+    """``(controller, its config)`` of a sweep (host-built, cached by the registry)."""
+    return _controllers().load(config.controller, config.overrides())
+
+
+def gait(config: SweepConfig):
+    ctrl, cfg = controller(config)
+    return ctrl.gait(cfg)
 
 
 def walk_spec(config: SweepConfig):
-    """The static :class:`mjx_coman.walking.rollout.WalkSpec` of a sweep."""
-    _, rollout_mod = _walking()
-    return rollout_mod.WalkSpec(controller=config.controller, speed_mps=None,
-                                seconds=(config.n_steps + 1) * config.step_time_s, step_time_s=config.step_time_s,
-                                record_every=50)
+    """The static :class:`mjx_coman.rollout.WalkSpec` of a sweep."""
+    g = gait(config)
+    return _rollout_module().WalkSpec(seconds=g.first_step_s + config.n_steps * g.step_time_s)
 
 
 def ticks_per_rollout(config: SweepConfig) -> int:
-    """Control ticks (2 ms, each 2 physics steps of 1 ms) of one walk."""
-    _, rollout_mod = _walking()
-    return rollout_mod.sizes(walk_spec(config), nominal(config)[1])[0]
+    """Control ticks of one walk (2 ms, each 2 physics steps of 1 ms)."""
+    return _rollout_module().n_ticks(walk_spec(config), gait(config).control_period_s)
 
 
 def env_step_s(config: SweepConfig) -> float:
     """One environment step (control tick), s."""
-    return CONTROL_PERIOD_S
+    return gait(config).control_period_s
 
 
 def randomized_env(env, config: SweepConfig, key):
@@ -134,34 +152,164 @@ def randomized_env(env, config: SweepConfig, key):
 
 def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     """One pushed walk (see the module docstring)."""
-    _, rollout_mod = _walking()
-    env, ctrl = nominal(config)
+    ro = _rollout_module()
+    ctrl, cfg = controller(config)
+    g = ctrl.gait(cfg)
+    env = nominal_env(config.sensor_noise_scale)
     key = jax.random.wrap_key_data(inputs.key, impl="threefry2x32")
     walk_key, robot_key = jax.random.split(key)
     env = randomized_env(env, config, robot_key)
-    f = ctrl.zeta.dtype
+    f = jnp.result_type(float)
     mag = inputs.impulse_ns / config.push_duration_s
     force = jnp.stack([mag * jnp.cos(inputs.direction_rad), mag * jnp.sin(inputs.direction_rad), 0.0 * mag])
-    start_s = (config.push_step + 1 + inputs.phase) * config.step_time_s  # after the start-up phase
-    push = rollout_mod.WalkPush(start_s=jnp.asarray(start_s, f),
-                                duration_s=jnp.asarray(config.push_duration_s, f), force_n=force.astype(f))
-    r = rollout_mod.walk(env, ctrl, push, walk_spec(config), walk_key)
+    start_s = g.first_step_s + (config.push_step + inputs.phase) * g.step_time_s
+    push = ro.Push(start_s=jnp.asarray(start_s, f), duration_s=jnp.asarray(config.push_duration_s, f),
+                   force_n=force.astype(f))
+    joy = _controllers().joystick(config.speed_mps)
+    r = ro.walk(ctrl.core(), cfg, env, push, walk_key, walk_spec(config), joy)
     return RolloutOutputs(
         fell=r.fell, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
         max_abs_footstep_adjustment_m=r.max_abs_footstep_adjustment_m, fall_time_s=r.fall_time_s, nan=r.nan,
+        extra=dict(touchdowns=r.touchdowns, mean_speed_mps=r.mean_speed_mps,
+                   cycle_forward_mps=r.cycle_velocity_mps[0], cycle_lateral_mps=r.cycle_velocity_mps[1]),
     )
 
 
 def prepare(config: SweepConfig, inputs: RolloutInputs):
-    """Build (and cache) the nominal robot and controller outside the sharded call's trace."""
-    nominal(config)
+    """Build (and cache) the nominal robot and the controller's config outside the sharded call's trace."""
+    nominal_env(config.sensor_noise_scale)
+    controller(config)
     return None
 
 
-def load() -> Model:
-    """The registry entry (unavailable while the MJX walking controller does not exist)."""
+def settings(name: str) -> tuple:
+    """The settings of a registered controller (``GridError`` naming an unknown one)."""
     try:
-        _walking()
-    except ImportError as e:
-        return Model(None, lambda config: 0, unavailable=UNAVAILABLE.format(e))
-    return Model(rollout, ticks_per_rollout, prepare=prepare, env_step_s=env_step_s)
+        return _controllers().get(name).settings
+    except ValueError as e:
+        raise GridError(str(e)) from None
+
+
+def controller_names() -> tuple[str, ...]:
+    return _controllers().names()
+
+
+def compare_default() -> tuple[str, ...]:
+    """Every registered walking controller."""
+    return _controllers().names(walking=True)
+
+
+# --- tuning ----------------------------------------------------------------------------------------
+
+TUNE_SECONDS_AFTER = 0.8  # the walk goes on two steps after the push (the sway they take)
+
+
+def _transform(setting):
+    """``(to_raw, from_raw)`` of a tunable by its bounds: logit between two, log above one, identity."""
+    lo, hi = setting.bounds if setting.bounds is not None else (None, None)
+    if lo is not None and hi is not None:
+        return (lambda x: jnp.log(x - lo) - jnp.log(hi - x)), (lambda r: lo + (hi - lo) * jax.nn.sigmoid(r))
+    if lo is not None:
+        return (lambda x: jnp.log(x - lo)), (lambda r: lo + jnp.exp(r))
+    return (lambda x: x), (lambda r: r)
+
+
+def sway_record(state):
+    """A save function: the sagittal CoM offset from the loaded feet (heading frame), m."""
+    from mjx_coman import ground_truth as gt
+
+    d = state.env.data
+    off = gt.com_m(d)[:2] - gt.support_point(d)[:2]
+    yaw = gt.pelvis_yaw_rad(d)
+    return jnp.cos(yaw) * off[0] + jnp.sin(yaw) * off[1]
+
+
+def tune_problem(tc) -> TuneProblem:
+    """Ground-truth sway after pushes of the MJX walk, as a function of the controller's tunable settings.
+
+    ``tc.tunables`` names the settings (default ``deadzone`` and ``zeta``); each moves in
+    unconstrained coordinates by its bounds. The scenarios: ``min(tc.batch, 2)`` 0.1 s pushes, forward or
+    backward, in walking step ``tc.push_step`` (at 30-70 % of it, 25-100 % of ``tc.impulse_max_ns``) of a walk
+    that ends ``TUNE_SECONDS_AFTER`` later; the loss is the mean square of the sagittal distance of the CoM
+    from the loaded feet (:func:`mjx_coman.ground_truth.support_point`) over the walk, cm^2.
+    """
+    ctrls, ro = _controllers(), _rollout_module()
+    ctrl, cfg0 = ctrls.load(tc.controller, dict(tc.controller_overrides or {}))
+    names = tuple(tc.tunables) if tc.tunables else tuple(n for n in ("deadzone", "zeta") if n in ctrl.tunables())
+    by_name = {s.name: s for s in ctrl.settings}
+    for n in names:
+        if n not in by_name or not by_name[n].tunable:
+            raise ValueError(f"{n!r} is not a tunable setting of {tc.controller}; tunable: {', '.join(ctrl.tunables())}")
+    if not names:
+        raise ValueError(f"controller {tc.controller!r} has no tunable settings to tune")
+    tf = {n: _transform(by_name[n]) for n in names}
+    g = ctrl.gait(cfg0)
+    env = nominal_env(1.0)
+    start = g.first_step_s + tc.push_step * g.step_time_s
+    seconds = start + g.step_time_s + TUNE_SECONDS_AFTER
+    spec, save = ro.WalkSpec(seconds=seconds), ro.SaveAt(sway_record, every=5)
+    n = min(tc.batch, 2)
+
+    def pushes(seed):
+        rng = np.random.default_rng(seed)
+        t0 = start + rng.uniform(0.3, 0.7, n) * g.step_time_s
+        imp = rng.uniform(0.25, 1.0, n) * tc.impulse_max_ns
+        heading = np.where(rng.uniform(size=n) < 0.5, 0.0, np.pi)
+        p = ro.make_push(t0, 0.1, impulse_ns=imp, direction_rad=heading)
+        return ro.Push(p.start_s, jnp.broadcast_to(p.duration_s, (n,)), p.force_n)
+
+    batches = {"train": pushes(tc.seed), "held": pushes(tc.seed + 1)}
+    keys = jax.random.split(jax.random.PRNGKey(tc.seed), n)
+    joy = ctrls.joystick(tc.speed_mps)
+
+    def physical(raw):
+        return {k: tf[k][1](v) for k, v in raw.items()}
+
+    def loss(raw, batch):
+        cfg = cfg0.replace(**physical(raw))
+        r = jax.vmap(lambda p, k: ro.walk(ctrl.core(), cfg, env, p, k, spec, joy, save))(batch, keys)
+        return jnp.mean(r.saved**2) * 1e4, r.fell
+
+    fns = {split: (jax.jit(lambda r, b=b: loss(r, b)), jax.jit(jax.jacfwd(lambda r, b=b: loss(r, b)[0])))
+           for split, b in batches.items()}
+
+    def vg(raw, split):
+        value, grad = fns[split]
+        loss_v, fell = value(raw)
+        return (loss_v, dict(fell=fell)), grad(raw)
+
+    def to_values(raw):
+        return {k: (tuple(float(x) for x in np.ravel(v)) if np.ndim(v) else float(v))
+                for k, v in ((k, np.asarray(v)) for k, v in physical(raw).items())}
+
+    def constants(raw):
+        out = {}
+        for k, v in to_values(raw).items():
+            if isinstance(v, tuple):
+                out.update({f"{k}_{i}": x for i, x in enumerate(v)})
+            else:
+                out[k] = v
+        return out
+
+    raw0 = {k: tf[k][0](jnp.asarray(getattr(cfg0, k))) for k in names}
+    return TuneProblem(raw0=raw0, value_and_grad=vg, constants=constants, overrides=to_values,
+                       info=dict(tunables=list(names), loss_definition=(
+                           "mean square of the sagittal CoM offset from the loaded feet, cm^2, over a "
+                           f"{seconds:g} s walk pushed in walking step {tc.push_step}"),
+                           pushes=dict(train=np.asarray(batches["train"].force_n)[:, 0].tolist(),
+                                       held=np.asarray(batches["held"].force_n)[:, 0].tolist())))
+
+
+def holdout_grid(record: dict) -> dict:
+    """Held-out MJX sweeps of a tuning record: forward and backward, 4 phases x 0-8 N s in walking step 2 of
+    8-step walks, nominal IMU/F-T noise and 2 mrad encoder offsets (the systematic errors the dead-zones are for)."""
+    return dict(directions=("forward", "backward"), phases=(0.0, 0.25, 0.5, 0.75),
+                impulses_ns=(0.0, 2.0, 4.0, 6.0, 8.0), n_steps=8, push_step=2, sensor_noise_scale=1.0,
+                encoder_offset_std_rad=0.002, chunk=64)
+
+
+def load() -> Model:
+    """The registry entry."""
+    return Model(rollout, ticks_per_rollout, controllers=controller_names, compare_default=compare_default,
+                 settings=settings, check=check, prepare=prepare,
+                 env_step_s=env_step_s, tune_problem=tune_problem, holdout_grid=holdout_grid)

@@ -32,14 +32,21 @@ def test_bad_grids_name_the_problem(parse, text, match):
 
 @pytest.mark.parametrize("fields, match", [
     (dict(phases=()), "empty"), (dict(impulses_ns=(1.0, -2.0)), "non-negative"),
-    (dict(controller="pid"), "unknown controller 'pid'"), (dict(model="bullet"), "unknown model"),
+    (dict(controller="pid"), "unknown controller 'pid'"), (dict(model="bullet"), "unknown model.*3lp.*mjx"),
     (dict(model="3lp", controller="no-deadzone"), "no-deadzone"), (dict(direction="up"), "unknown direction"),
     (dict(push_step=10), "push_step"), (dict(randomize_mass_pct=60.0), "below 50"),
     (dict(model="3lp", randomize_spring_pct=5.0), "mjx only"), (dict(model="mjx", noise_std_m=1e-3), "3lp only"),
-    (dict(chunk=0), "chunk"), (dict(noise_std_m=math.nan), "noise_std_m"),
-    (dict(model="3lp", zeta=0.2), "zeta .*mjx only"), (dict(model="mjx", deadzone=(0.01, 0.02)), "4 finite positive"),
-    (dict(model="mjx", deadzone=(0.01, 0.01, -0.1, 0.1)), "4 finite positive"), (dict(model="mjx", zeta=1.5), "zeta"),
-    (dict(model="mjx", velocity_window=0), "velocity_window"),
+    (dict(chunk=0), "chunk"), (dict(noise_std_m=math.nan), "noise_std_m"), (dict(speed_mps=math.inf), "speed_mps"),
+    (dict(model="mjx", recover_tol=0.1), "recover_tol"), (dict(step_time_s=0.0), "step_time_s"),
+    (dict(controller_overrides=(("zeta", 0.2), ("deadzone", (1, 1, 1, 1)))), "sorted"),
+    (dict(controller_overrides=(("nope", 1.0),)), "unknown setting 'nope'"),
+    (dict(controller_overrides=(("zeta", 1.5),)), "zeta"),
+    (dict(controller_overrides=(("deadzone", (0.01, 0.02)),)), "deadzone"),
+    (dict(model="mjx", controller="nope"), "unknown controller 'nope'.*time-projection"),
+    (dict(model="mjx", controller_overrides=(("window", 0),)), "window"),
+    (dict(model="mjx", controller_overrides=(("window_samples", 3.0),)), "unknown setting 'window_samples'"),
+    (dict(model="mjx", step_time_s=0.5), "step_time_s"),
+    (dict(model="mjx", speed_mps=0.5), "forward_mps"),
 ])
 def test_validate_names_the_bad_value(fields, match):
     with pytest.raises(GridError, match=match):
@@ -58,10 +65,12 @@ def test_grid_is_phase_major_and_the_hash_is_the_identity():
     assert cfg.hash() != SweepConfig(phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0), direction="left", seed=1).hash()
 
 
-def test_controller_constants_enter_the_hash_only_when_set():
-    base = SweepConfig(model="mjx")
-    assert "deadzone" not in base.to_dict() and "zeta" not in base.to_dict()  # hashes of older sweeps stay
-    tuned = SweepConfig(model="mjx", deadzone=(0.004, 0.004, 0.04, 0.04), zeta=0.2, velocity_window=14).validate()
-    assert tuned.to_dict()["deadzone"] == [0.004, 0.004, 0.04, 0.04]
-    assert len({base.hash(), tuned.hash(), SweepConfig(model="mjx", zeta=0.3).hash()}) == 3
-    assert tuned.compiled_part().zeta == 0.2  # the constants are compiled into the rollouts
+def test_controller_overrides_are_part_of_the_identity_and_round_trip():
+    base = SweepConfig(model="mjx").validate()
+    tuned = base.with_overrides({"zeta": 0.2, "deadzone": [0.004, 0.004, 0.04, 0.04]}).validate()
+    assert tuned.controller_overrides == (("deadzone", (0.004, 0.004, 0.04, 0.04)), ("zeta", 0.2))
+    assert tuned.to_dict()["controller_overrides"] == {"deadzone": [0.004, 0.004, 0.04, 0.04], "zeta": 0.2}
+    assert len({base.hash(), tuned.hash(), base.with_overrides({"zeta": 0.3}).hash()}) == 3
+    assert tuned.compiled_part().overrides() == {"deadzone": (0.004, 0.004, 0.04, 0.04), "zeta": 0.2}
+    assert SweepConfig.from_dict(tuned.to_dict()) == tuned
+    assert base.to_dict()["results_version"] == 2  # results judged on ground truth: older folders are other sweeps

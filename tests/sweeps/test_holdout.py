@@ -1,56 +1,65 @@
-"""sweeps.holdout_mjx: tuned constants into MJX sweeps (mapping, files, the controller they reach), slow held-out run."""
+"""sweeps.holdout: tuned overrides into held-out sweeps of either model (files, transfer, the controller they reach)."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from sweeps import holdout_mjx
+from sweeps import holdout
 from sweeps.grid import SweepConfig
 
-TUNED = Path(__file__).parents[2] / "notebooks" / "data" / "05" / "tuned.json"
+RECORD = dict(plant="3lp", controller="time-projection", config=dict(seed=0, robot="coman", noise_min_m=5e-4,
+                                                                      noise_max_m=1.5e-3, bias_std_m=2e-3),
+              overrides_before=dict(deadzone=[0.004, 0.004, 0.04, 0.04], zeta=0.1, window_samples=30.0),
+              overrides_after=dict(deadzone=[0.001, 0.002, 0.03, 0.05], zeta=0.25, window_samples=11.6))
 
 
-def test_sweep_fields_of_a_tune_record():
-    record = json.loads(TUNED.read_text())
-    after = record["constants_after"]
-    f = holdout_mjx.load_constants(TUNED)
-    assert f["deadzone"] == pytest.approx((after["deadzone_swing_position_m"], after["deadzone_pelvis_position_m"],
-                                           after["deadzone_swing_velocity_mps"], after["deadzone_pelvis_velocity_mps"]))
-    assert f["zeta"] == pytest.approx(after["zeta"])
-    assert f["velocity_window"] == round(after["window_samples"])  # the MJX window is whole samples
-    before = holdout_mjx.load_constants(TUNED, "before")
-    assert before["zeta"] == pytest.approx(0.1, abs=1e-6) and before["velocity_window"] == 30
-    cfgs = holdout_mjx.holdout_configs(f, phases=(0.5,), impulses_ns=(0.0, 3.0))
-    assert [c.direction for c in cfgs] == ["forward", "backward"] and all(c.zeta == f["zeta"] for c in cfgs)
+def test_held_out_configs_of_each_model_carry_the_overrides():
+    for model, window in (("3lp", ("window_samples", 11.6)), ("mjx", ("window", 12))):
+        cfgs = holdout.holdout_configs(RECORD, model, RECORD["overrides_after"], phases=(0.5,), impulses_ns=(0.0, 3.0))
+        assert [c.direction for c in cfgs] == ["forward", "backward"] and all(c.model == model for c in cfgs)
+        ov = cfgs[0].overrides()
+        assert ov["zeta"] == 0.25 and ov[window[0]] == window[1] and ov["deadzone"] == (0.001, 0.002, 0.03, 0.05)
+        assert cfgs[0].seed == 1  # the tuning seed + 1: other noise than training's
 
 
-@pytest.mark.parametrize("text, match", [
-    ("{not json", "cannot read"), ('{"constants_after": {"zeta": 0.1}}', "lack 'deadzone_swing_position_m'"),
-    ("[1, 2]", "no constants"),
-])
+def test_flat_and_record_files_give_the_overrides(tmp_path):
+    (tmp_path / "t.json").write_text(json.dumps(RECORD))
+    assert holdout.load_overrides(tmp_path / "t.json") == RECORD["overrides_after"]
+    assert holdout.load_overrides(tmp_path / "t.json", "before")["zeta"] == 0.1
+    (tmp_path / "f.json").write_text('{"zeta": 0.3}')
+    assert holdout.load_overrides(tmp_path / "f.json") == {"zeta": 0.3}
+
+
+@pytest.mark.parametrize("text, match", [("{not json", "cannot read"), ("[1, 2]", "no settings"),
+                                         ('{"config": {}, "plant": "3lp"}', "no controller overrides")])
 def test_bad_constants_files_name_the_problem(tmp_path, text, match):
     path = tmp_path / "c.json"
     path.write_text(text)
     with pytest.raises(ValueError, match=match):
-        holdout_mjx.load_constants(path)
+        holdout.load_overrides(path)
 
 
-def test_constants_reach_the_walking_controller():
-    from sweeps import model_mjx
+def test_overrides_reach_the_walking_controller():
+    from sweeps.models import mjx
 
-    cfg = SweepConfig(model="mjx", deadzone=(0.001, 0.002, 0.03, 0.05), zeta=0.25, velocity_window=12).validate()
-    _, ctrl = model_mjx.nominal(cfg)
-    np.testing.assert_allclose(np.asarray(ctrl.deadzone), cfg.deadzone, rtol=1e-6)
+    cfg = SweepConfig(model="mjx").with_overrides(dict(deadzone=(0.001, 0.002, 0.03, 0.05), zeta=0.25,
+                                                       window=12)).validate()
+    _, ctrl = mjx.controller(cfg)
+    np.testing.assert_allclose(np.asarray(ctrl.deadzone), (0.001, 0.002, 0.03, 0.05), rtol=1e-6)
     assert float(ctrl.zeta) == pytest.approx(0.25) and ctrl.window == 12
 
 
 @pytest.mark.parametrize("args, word", [
-    (["map", "--constants", "MISSING"], "--constants applies to --model mjx only"),
+    (["map", "--constants", "MISSING"], "cannot read constants"),
     (["map", "--model", "mjx", "--constants", "MISSING"], "cannot read constants"),
+    (["map", "--model", "mjx", "--set", "zeta=2"], "zeta"),
+    (["map", "--model", "mjx", "--set", "window_samples=3"], "unknown setting 'window_samples'"),
+    (["map", "--model", "3lp", "--set", "window=3"], "unknown setting 'window'"),
+    (["map", "--model", "mjx", "--controller", "nope"], "unknown controller 'nope'"),
+    (["compare", "--model", "3lp", "--controllers", "no-deadzone"], "no-deadzone"),
 ])
-def test_constants_option_errors_exit_2(args, word, tmp_path, capsys):
+def test_controller_option_errors_exit_2(args, word, tmp_path, capsys):
     from sweeps.cli import main
 
     with pytest.raises(SystemExit) as exc:
@@ -61,23 +70,16 @@ def test_constants_option_errors_exit_2(args, word, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_mjx_holdout_compares_the_sets_and_resumes(tmp_path):
-    """Thresholds of 1 m and 10 m/s leave no error past the dead-zone: no footstep adjustment, so a 6 N s push
-    that the seed's constants recover at phase 0 topples the walk; a re-run resumes every chunk."""
-    record = json.loads(TUNED.read_text())
-    record["constants_before"] = dict(record["constants_after"], deadzone_swing_position_m=0.004,
-                                      deadzone_pelvis_position_m=0.004, deadzone_swing_velocity_mps=0.04,
-                                      deadzone_pelvis_velocity_mps=0.04, zeta=0.1, window_samples=30.0)
-    record["constants_after"] = dict(record["constants_before"], deadzone_swing_position_m=1.0,
-                                     deadzone_pelvis_position_m=1.0, deadzone_swing_velocity_mps=10.0,
-                                     deadzone_pelvis_velocity_mps=10.0)
-    grid = dict(directions=("forward",), phases=(0.0,), impulses_ns=(0.0, 6.0), n_steps=7, chunk=2)
-    out = holdout_mjx.run_mjx_holdout(record, tmp_path, progress=False, **grid)
-    seed, tuned = (out["runs"][k][0].results for k in ("seed", "tuned"))
-    assert not seed["fell"].any(), seed
-    assert not tuned["fell"][0] and tuned["fell"][1]
-    table = json.loads((tmp_path / "holdout_mjx.json").read_text())
-    assert table["seed"]["recovery_rate"] == 1.0 and table["tuned"]["recovery_rate"] == 0.5
-    assert (tmp_path / "holdout_mjx.png").stat().st_size > 1000
-    again = holdout_mjx.run_mjx_holdout(record, tmp_path, progress=False, **grid)
-    assert all(r.timing["rollouts_resumed"] == 2 for lst in again["runs"].values() for r in lst)
+def test_held_out_mjx_sweeps_of_a_record_and_their_resume(tmp_path):
+    """1 m / 10 m/s dead-zones (no footstep adjustment) topple a push that the seed's constants recover."""
+    record = dict(RECORD, overrides_before=dict(deadzone=[0.004, 0.004, 0.04, 0.04], zeta=0.1, window=30),
+                  overrides_after=dict(deadzone=[1.0, 1.0, 10.0, 10.0], zeta=0.1, window=30))
+    grid = dict(directions=("backward",), phases=(0.375,), impulses_ns=(0.0, 6.0), chunk=2)
+    out = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, **grid)
+    seed, tuned = (out["runs"][n][0].results for n in holdout.SETS)
+    assert not seed["fell"].any() and tuned["fell"][1] and not tuned["fell"][0]
+    table = json.loads((tmp_path / "holdout.json").read_text())
+    assert table["model"] == "mjx" and table["seed"]["recovery_rate"] == 1.0
+    assert (tmp_path / "holdout.png").stat().st_size > 1000
+    again = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, **grid)
+    assert all(r.timing["chunks_run"] == 0 for lst in again["runs"].values() for r in lst)

@@ -1,4 +1,4 @@
-"""sweeps.model_mjx: per-rollout robot randomisation, the 'not available' path, a small MJX map (slow)."""
+"""sweeps.models.mjx: per-rollout robot randomisation, controllers by name, a small MJX map (slow)."""
 
 import json
 
@@ -6,16 +6,16 @@ import jax
 import numpy as np
 import pytest
 
-from sweeps import model_mjx, models
 from sweeps.grid import SweepConfig
+from sweeps.models import mjx
 
 CFG = SweepConfig(model="mjx", randomize_mass_pct=10.0, randomize_spring_pct=20.0, randomize_delay_ticks=3,
                   encoder_offset_std_rad=0.01, sensor_noise_scale=2.0)
 
 
 def test_randomized_robots_stay_within_bounds_and_follow_the_key():
-    env = model_mjx.nominal_env(CFG.sensor_noise_scale)
-    draw = jax.jit(jax.vmap(lambda k: model_mjx.randomized_env(env, CFG, k)))
+    env = mjx.nominal_env(CFG.sensor_noise_scale)
+    draw = jax.jit(jax.vmap(lambda k: mjx.randomized_env(env, CFG, k)))
     robots = draw(jax.random.split(jax.random.PRNGKey(0), 64))
     m0 = np.asarray(env.model.body_mass)
     ratio = np.asarray(robots.model.body_mass)[:, m0 > 0] / m0[m0 > 0]
@@ -33,22 +33,13 @@ def test_randomized_robots_stay_within_bounds_and_follow_the_key():
     np.testing.assert_array_equal(np.asarray(again.model.body_mass), np.asarray(robots.model.body_mass))
 
 
-def test_unavailable_walking_controller_exits_2_naming_it(monkeypatch, tmp_path, capsys):
-    def missing():
-        raise ModuleNotFoundError("No module named 'mjx_coman.walking.rollout'")
-
-    monkeypatch.setattr(model_mjx, "_walking", missing)
-    monkeypatch.setattr(models, "MODELS", {k: v for k, v in models.MODELS.items() if k != "mjx"})
-    with pytest.raises(models.ModelUnavailable, match="not available yet"):
-        models.get_model("mjx")
-    models.MODELS.pop("mjx")
-    from sweeps.cli import main
-
-    with pytest.raises(SystemExit) as exc:
-        main(["map", "--model", "mjx", "--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "not available yet" in err
-    assert not (tmp_path / "out").exists()
+def test_the_walk_is_timed_by_the_controllers_gait():
+    cfg = SweepConfig(model="mjx", n_steps=8).validate()
+    assert mjx.walk_spec(cfg).seconds == pytest.approx(0.4 + 8 * 0.4)  # its start-up phase, then 8 steps
+    assert mjx.ticks_per_rollout(cfg) == 1800 and mjx.env_step_s(cfg) == 0.002
+    pd = SweepConfig(model="mjx", controller="joint-pd", n_steps=8).validate()
+    assert mjx.walk_spec(pd).seconds == pytest.approx(8 * 0.4)  # no start-up phase
+    assert "joint-pd" not in mjx.compare_default() and "open-loop" in mjx.compare_default()
 
 
 @pytest.mark.slow
@@ -66,3 +57,6 @@ def test_small_mjx_map(tmp_path):
     assert np.all(res["fall_time_s"][res["fell"]] > (cfg.push_step + 1 + res["phase"][res["fell"]]) * 0.4)
     assert summary["env_step_s"] == 0.002 and summary["env_steps_per_rollout"] == 1200
     assert json.loads((tmp_path / "summary.json").read_text())["model"] == "mjx"
+    assert np.all(res["touchdowns"][res["impulse_ns"] == 0] >= 5)
+    header = (tmp_path / "results.csv").read_text().splitlines()[0]
+    assert "cycle_forward_mps" in header and "touchdowns" in header

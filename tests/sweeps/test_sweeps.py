@@ -59,6 +59,10 @@ def _results(out: Path) -> dict:
     (["map", "--randomize-spring", "5"], "--randomize-spring applies to --model mjx"),
     (["map", "--push-step", "12"], "push_step"),
     (["map", "--noise", "-0.1"], "--noise"),
+    (["map", "--set", "zeta"], "KEY=VALUE"),
+    (["map", "--set", "zeta=0"], "zeta"),
+    (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=1.5"], "hip_attack"),
+    (["compare", "--model", "mjx", "--controllers", "open-loop,pid"], "'pid'"),
 ])
 def test_bad_arguments_exit_2_with_one_line(args, names, tmp_path, capsys):
     from sweeps.cli import main
@@ -226,7 +230,9 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
     # a grid option without --preset: one map into --out with the base defaults
     (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
     (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],
-     [(c, "mjx", 4, 256) for c in ("time-projection", "dlqr", "open-loop", "no-deadzone")]),
+     [(c, "mjx", 4, 256) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr")]),
+    (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
+     [("", "mjx", 2 * 41, 256)]),
 ])
 def test_presets_and_overrides(argv, expected, tmp_path):
     from sweeps.cli import build_parser, plan_runs
@@ -238,4 +244,20 @@ def test_presets_and_overrides(argv, expected, tmp_path):
     if "--noise" in argv:
         assert plans[0][1].noise_std_m == 0.5 and plans[1][1].sensor_noise_scale == 0.5
     if argv == ["map"]:
-        assert [p[2] for p in plans] == [False, True]  # the MJX map is skipped while MJX cannot run
+        assert [p[1].controller for p in plans] == ["time-projection", "time-projection"]
+    if "--set" in argv:
+        assert plans[0][1].controller == "open-loop" and plans[0][1].overrides() == {"hip_attack": 0.5}
+
+
+def test_controllers_command_lists_every_registered_controller(capsys):
+    from mjx_coman import controllers
+    from sweeps.cli import main
+
+    assert main(["controllers", "--json"]) == 0
+    table = json.loads(capsys.readouterr().out)
+    assert [r["name"] for r in table["mjx"]] == list(controllers.names())
+    assert [r["name"] for r in table["3lp"]] == ["time-projection", "dlqr", "open-loop"]
+    tp = next(r for r in table["mjx"] if r["name"] == "time-projection")
+    zeta = next(s for s in tp["settings"] if s["name"] == "zeta")
+    assert zeta["default"] == 0.1 and zeta["tunable"] and zeta["bounds"] == [0.0, 1.0]
+    assert main(["controllers"]) == 0 and "joint-pd" in capsys.readouterr().out

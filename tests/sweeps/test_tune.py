@@ -1,10 +1,9 @@
-"""coman-sweep tune: a tiny optax run lowers the loss and writes valid outputs; held-out grids; bad arguments."""
+"""coman-sweep tune: a tiny optax run lowers the loss and writes valid outputs; held-out sweeps; bad arguments."""
 
 import json
 import subprocess
 import sys
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -38,6 +37,11 @@ def test_outputs_are_valid_json_and_png(tiny_run):
     assert float(before.zeta) == pytest.approx(0.1) and float(before.window_samples) == pytest.approx(30.0)
     assert saved["constants_after"] != saved["constants_before"]
     np.testing.assert_allclose(np.asarray(after.weight_scale), 1.0)  # weights not tuned unless asked
+    # the overrides stand for the constants: the 3lp controller's settings
+    ov = saved["overrides_after"]
+    assert ov["zeta"] == pytest.approx(saved["constants_after"]["zeta"])
+    assert ov["deadzone"][1] == pytest.approx(saved["constants_after"]["deadzone_pelvis_position_m"])
+    assert len(ov["lateral_deadzone"]) == 4 and ov["lateral_deadzone"] == saved["lateral_deadzone"]
     assert np.isfinite(saved["heldout_loss_before"]) and np.isfinite(saved["heldout_loss_after"])
     assert (out / "loss.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporary files
@@ -51,42 +55,54 @@ def test_seed_thresholds_come_from_figure9_of_the_training_sensors(tiny_run):
     assert 2e-3 < c["deadzone_swing_velocity_mps"] < 0.1 and 2e-3 < c["deadzone_pelvis_velocity_mps"] < 0.1
 
 
-def test_holdout_grid_recovers_small_pushes_and_not_huge_ones(tmp_path):
-    cfg = holdout.holdout_configs(directions=("forward",), phases=(0.25, 0.75), impulses_ns=(0.0, 2.0, 40.0),
-                                  n_steps=6)[0]
-    c = O.make_constants([2e-3, 2e-3, 2e-2, 2e-2])
-    run = holdout.run_holdout(cfg, c, jnp.array([3e-4, 1.5e-3, 7e-3, 3e-2]), bias_std_m=1e-3, chunk=4)
-    res = run.results
-    assert res["fell"].shape == (6,) and set(res["reason"]) <= {"", "fell", "nan"}
-    fell = res["fell"].reshape(2, 3)
-    np.testing.assert_array_equal(fell, [[False, False, True], [False, False, True]])
-    s = holdout.summary(run)
-    assert s["recovery_rate"] == pytest.approx(4 / 6) and s["undisturbed_fell"] == 0
-    assert [r["max_recovered_impulse_ns"] for r in s["per_phase"]] == [2.0, 2.0]
-    holdout.save_runs(tmp_path / "h.npz", {"seed": [run]})
-    back = holdout.load_runs(tmp_path / "h.npz")["seed"][0]
-    assert back.config == run.config
-    np.testing.assert_array_equal(back.results["fell"], res["fell"])
+def test_holdout_sweeps_recover_small_pushes_and_not_huge_ones(tiny_run, tmp_path):
+    """The held-out 3LP sweeps of the record run through the sweep runner: outputs, resume, the load round trip."""
+    _, record = tiny_run
+    grid = dict(directions=("forward",), phases=(0.25, 0.75), impulses_ns=(0.0, 2.0, 40.0), n_steps=6, chunk=4)
+    out = holdout.run_holdout(record, tmp_path, progress=False, **grid)
+    runs, table = out["runs"], out["table"]
+    for name in holdout.SETS:
+        res = runs[name][0].results
+        assert runs[name][0].config.overrides()["zeta"] == pytest.approx(record[f"overrides_{'before' if name == 'seed' else 'after'}"]["zeta"])
+        assert res["fell"].shape == (6,) and set(res["reason"]) <= {"", "fell", "nan"}
+        np.testing.assert_array_equal(res["fell"].reshape(2, 3), [[False, False, True], [False, False, True]])
+        s = table[name]["per_direction"][0]
+        assert s["recovery_rate"] == pytest.approx(4 / 6) and s["undisturbed_fell"] == 0
+        assert [r["max_recovered_impulse_ns"] for r in s["per_phase"]] == [2.0, 2.0]
+        assert np.all(np.isfinite(res["late_error"]))
+    saved = json.loads((tmp_path / "holdout.json").read_text())
+    assert saved["model"] == "3lp" and saved["seed"]["rollouts"] == 6
+    back = holdout.load_runs(tmp_path / "holdout.npz")["tuned"][0]
+    assert back.config == runs["tuned"][0].config
+    np.testing.assert_array_equal(back.results["fell"], runs["tuned"][0].results["fell"])
+    again = holdout.run_holdout(record, tmp_path, progress=False, **grid)  # resumes every chunk
+    assert all(r.timing["chunks_run"] == 0 for lst in again["runs"].values() for r in lst)
+
+
+def test_overrides_transfer_between_models():
+    from mjx_coman import controllers
+
+    ov = {"deadzone": [0.001, 0.002, 0.03, 0.04], "zeta": 0.12, "window_samples": 27.6, "lateral_deadzone": [1, 1, 1, 1]}
+    out = holdout.transfer_overrides(ov, controllers.get("time-projection").settings)
+    assert out == {"deadzone": (0.001, 0.002, 0.03, 0.04), "zeta": 0.12, "window": 28}  # whole samples on MJX
 
 
 @pytest.mark.parametrize("field,value", [("steps", 0), ("batch", 0), ("learning_rate", -1.0), ("n_steps", 3),
                                          ("optimizer", "lbfgs"), ("plant", "mujoco"), ("noise_max_m", 1e-4),
-                                         ("bias_std_m", -1e-3), ("controller", "open-loop")])
+                                         ("bias_std_m", -1e-3), ("controller", "open-loop"),
+                                         ("learning_rate", float("inf"))])
 def test_bad_config_raises(field, value):
     with pytest.raises(ValueError, match=field.split("_")[0]):
         tune.TuneConfig(**{field: value}).validate()
 
 
-def _registered() -> bool:
-    from sweeps import cli
-
-    return "tune" in getattr(cli, "COMMANDS", {})
-
-
-@pytest.mark.skipif(not _registered(), reason="coman-sweep tune is not registered in sweeps.cli yet")
 @pytest.mark.parametrize("args,word", [(["--steps", "0"], "steps"), (["--optimizer", "newton"], "optimizer"),
                                        (["--plant", "mujoco"], "plant"), (["--noise-max", "1e-5"], "noise_max"),
-                                       (["--lr", "0"], "learning_rate")])
+                                       (["--lr", "0"], "learning_rate"), (["--lr", "inf"], "learning_rate"),
+                                       (["--plant", "mjx", "--controller", "nope"], "time-projection"),
+                                       (["--plant", "mjx", "--set", "bogus=1"], "bogus"),
+                                       (["--set", "zeta=0.2"], "--set"),
+                                       (["--plant", "mjx", "--tune", "step_time_s"], "step_time_s")])
 def test_bad_arguments_exit_2_with_one_line(args, word):
     p = subprocess.run([sys.executable, "-m", "sweeps", "tune", *args], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
@@ -96,16 +112,21 @@ def test_bad_arguments_exit_2_with_one_line(args, word):
 
 @pytest.mark.slow
 def test_mjx_forward_mode_gradient_agrees_with_central_differences():
-    """Through contact (1.2 s pushed COMAN walk, float64, softened foot contacts), AD vs differences at 1e-5.
+    """Through contact (the MJX tuning problem, float64), the forward-mode gradient of the ground-truth sway
+    against central differences at 1e-5 in the unconstrained coordinates (1e-4 straddles shifted touchdowns)."""
+    import jax
+    import jax.numpy as jnp
 
-    The sway is piecewise smooth in the constants (touchdown ticks shift): differences over 1e-4 straddle
-    such a jump on three of the five constants (measured: 6-7 cm² per unit against AD's 0.1-0.3), while
-    at 1e-5 and 1e-6 all five agree with AD to five digits.
-    """
-    from sweeps.tune_mjx import NAMES, gradient_check
+    from sweeps.models import get_model
 
-    r = gradient_check(eps=(1e-5,), soft_contacts=True)
-    ad = np.array([r["gradient"][n] for n in NAMES])
-    fd = np.array([r["central_differences"][n][0] for n in NAMES])
-    assert np.all(np.isfinite(ad))
-    np.testing.assert_allclose(ad, fd, rtol=1e-2, atol=1e-4)
+    with jax.enable_x64(True):
+        p = get_model("mjx").tune_problem(tune.TuneConfig(plant="mjx", batch=1, impulse_max_ns=3.0, x64=True))
+        (loss, _), grad = p.value_and_grad(p.raw0, "train")
+        eps = 1e-5
+        for name, g in grad.items():
+            for i in range(np.size(g)):
+                e = jnp.zeros_like(p.raw0[name]).reshape(-1).at[i].set(eps).reshape(np.shape(p.raw0[name]))
+                plus = dict(p.raw0, **{name: p.raw0[name] + e})
+                minus = dict(p.raw0, **{name: p.raw0[name] - e})
+                fd = (float(p.value_and_grad(plus, "train")[0][0]) - float(p.value_and_grad(minus, "train")[0][0])) / (2 * eps)
+                np.testing.assert_allclose(np.ravel(g)[i], fd, rtol=1e-2, atol=1e-4, err_msg=f"{name}[{i}]")
