@@ -1,4 +1,4 @@
-"""COMAN in MuJoCo MJX: model, series-elastic actuators, sensors, environment.
+"""COMAN in MuJoCo MJX: model, series-elastic actuators, sensors, environment, controllers, rollouts judged on ground truth.
 
 The model is generated from the CAD link table by :mod:`mjx_coman.mjcf`;
 :func:`model_path` gives the scene file (floor, light, robot) and

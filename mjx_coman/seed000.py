@@ -1,6 +1,6 @@
 """The walking experiments of seed 000 on the simulated COMAN, each printing JSON.
 
-``python -m mjx_coman.seed000 {push-table,drag,scatter,speeds,ten,identify} [options] [--json]``
+``python -m mjx_coman.seed000 {push-table,drag,scatter,speeds,ten,identify} [--set KEY=VALUE ...] [options] [--json]``
 
 * ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
   at 8 phases of one step of the in-place gait, over a grid of impulses, for
@@ -120,8 +120,11 @@ def largest_recovered(impulses, recovered) -> np.ndarray:
 
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
                steps_after: int = 8, directions=("forward", "backward"), variants=("time-projection", "open-loop"),
-               seed: int = 0, chunk: int = 64) -> dict:
-    """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place)."""
+               seed: int = 0, chunk: int = 64, overrides: dict | None = None) -> dict:
+    """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place).
+
+    ``overrides``: settings changed in every variant (``--set``).
+    """
     imp = np.asarray(sorted(impulses), float)
     if imp.size == 0 or np.any(imp <= 0):
         raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
@@ -132,7 +135,7 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
     sign = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
     ctrl, pushes, index = [], [], []
     for c in variants:
-        cp = config(c)
+        cp = config(c, **(overrides or {}))
         for dname in directions:
             for ph in phases:
                 for m in imp:
@@ -194,28 +197,29 @@ def footstep_spread_m(rel: dict) -> dict:
 
 
 def ten_second_walks(seconds: float = 10.0, drag_forces_n=(1.0, 0.0, -1.0), speeds=(0.1, 0.2), seed: int = 0,
-                     which=("scatter", "drag", "speeds")) -> dict:
+                     which=("scatter", "drag", "speeds"), overrides: dict | None = None) -> dict:
     """The 10-second experiments in one batch of one compiled walk: scatter (Figure 14), drag (18), speeds (19).
 
-    ``which`` picks the experiments of the batch.
+    ``which`` picks the experiments of the batch; ``overrides`` changes settings in every variant.
     """
+    ov = overrides or {}
     env = ro.walking_env_params()
     spec = ro.WalkSpec(seconds=seconds)
     save = ro.SaveAt(ro.pelvis_and_com, every=50)
     names, cfgs, pushes, vs = [], [], [], []
     for v in VARIANTS if "scatter" in which else ():
         names.append(("scatter", v))
-        cfgs.append(config(v))
+        cfgs.append(config(v, **ov))
         pushes.append(ro.no_push())
         vs.append(0.0)
     for f in drag_forces_n if "drag" in which else ():
         names.append(("drag", f))
-        cfgs.append(config("open-loop"))
+        cfgs.append(config("open-loop", **ov))
         pushes.append(ro.make_push(0.0, seconds + 1.0, (f, 0.0, 0.0)))
         vs.append(0.0)
     for v in speeds if "speeds" in which else ():
         names.append(("speed", v))
-        cfgs.append(config())
+        cfgs.append(config(**ov))
         pushes.append(ro.no_push())
         vs.append(v)
     t0 = time.perf_counter()
@@ -250,7 +254,7 @@ def ten_second_walks(seconds: float = 10.0, drag_forces_n=(1.0, 0.0, -1.0), spee
     return out
 
 
-def open_loop_walk(env_params, *, seconds: float = 10.0, seed: int = 0):
+def open_loop_walk(env_params, *, seconds: float = 10.0, seed: int = 0, overrides: dict | None = None):
     """The seed's identification walk, recorded every tick: open loop, in place (``SaveAt(trace, every=1)``).
 
     Seed 000 identifies both the dead-zones and the knee deflections on this
@@ -265,12 +269,12 @@ def open_loop_walk(env_params, *, seconds: float = 10.0, seed: int = 0):
 
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be finite and positive, got {seconds}")
-    ctrl, cfg = controllers.load("open-loop")
+    ctrl, cfg = controllers.load("open-loop", overrides)
     fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=float(seconds)), ro.SaveAt(trace, every=1))
     return fn(cfg, env_params, ro.no_push(), jax.random.PRNGKey(seed), joystick())
 
 
-def identify(seconds: float = 10.0, settle_s: float = 2.0, seed: int = 0) -> dict:
+def identify(seconds: float = 10.0, settle_s: float = 2.0, seed: int = 0, overrides: dict | None = None) -> dict:
     """Dead-zone thresholds (Figure 9) and knee deflections (Figure 7) from the open-loop in-place walk."""
     from mjx_coman.controllers.time_projection import identification as idn
 
@@ -278,7 +282,7 @@ def identify(seconds: float = 10.0, settle_s: float = 2.0, seed: int = 0) -> dic
         raise ValueError(f"settle_s={settle_s} must be shorter than the walk ({seconds} s)")
     env = ro.walking_env_params()
     t0 = time.perf_counter()
-    r = jax.tree_util.tree_map(np.asarray, open_loop_walk(env, seconds=seconds, seed=seed))
+    r = jax.tree_util.tree_map(np.asarray, open_loop_walk(env, seconds=seconds, seed=seed, overrides=overrides))
     wall = time.perf_counter() - t0
     dz = idn.identify_deadzones(r, settle_s=settle_s)
     dz_pc = idn.identify_deadzones(r, settle_s=settle_s, at_phase_change=True)
@@ -328,21 +332,23 @@ def _jsonable(x):
 
 
 def _run(args):
+    ov = controllers.parse_overrides(controllers.get(FAMILY), args.set)
+    config(FAMILY, **ov)  # a bad value is a ValueError naming it, before anything walks
     if args.experiment == "push-table":
         if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
             sys.stderr.write("python -m mjx_coman.seed000: error: --phases, --steps-after >= 1, "
                              "--push-step >= 0 and --impulses > 0 required\n")
             return None
-        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed)
+        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed, overrides=ov)
     elif args.experiment == "identify":
-        res = identify(args.seconds, args.settle, args.seed)
+        res = identify(args.seconds, args.settle, args.seed, overrides=ov)
     else:
         if not 0 < args.seconds <= 600:
             sys.stderr.write(f"python -m mjx_coman.seed000: error: --seconds must lie in (0, 600], "
                              f"got {args.seconds}\n")
             return None
         which = ("scatter", "drag", "speeds") if args.experiment == "ten" else (args.experiment,)
-        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed, which)
+        res = ten_second_walks(args.seconds, tuple(args.drag_forces), tuple(args.speeds), args.seed, which, ov)
     return res
 
 
@@ -364,6 +370,8 @@ def main(argv=None) -> int:
     idp.add_argument("--settle", type=float, default=2.0)
     for sp in sub.choices.values():
         sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a setting of the time-projection family, changed in every variant of the experiment")
         sp.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     # mujoco.mjx prints "Failed to import warp" on stdout when Warp is absent: keep stdout for the JSON.

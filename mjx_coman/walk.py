@@ -141,6 +141,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
 
     ctrl, config = controllers.load(args.controller_name, args.overrides)
     env_params = ro.walking_env_params()
+    judge = ro.WalkSpec().judge
     if args.push_ns > 0:
         start = push_start_s(args.gait, args.push_step, args.push_phase)
         push = ro.make_push(start, args.push_duration, push_force_n(args.push_ns, args.push_duration, args.push_dir))
@@ -164,8 +165,9 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "mean_speed_mps": float(res.mean_speed_mps),
         "touchdowns": int(res.touchdowns),
         "steps_to_recover": (s2r if s2r >= 0 else None) if args.push_ns > 0 else None,
-        "steps_to_recover_basis": "ground truth: CoM step velocity back within "
-                                  f"{ro.WalkSpec().judge.recover_tol_mps:g} m/s of the pre-push steps",
+        "steps_to_recover_basis": (f"ground truth: touchdowns after the push until the CoM's touchdown-to-touchdown "
+                                   f"velocity stays within {judge.recover_tol_mps:g} m/s of the limit cycle the walk "
+                                   f"ends in ({judge.confirm_steps} steps in a row at least)"),
         "max_abs_footstep_adjustment_m": float(res.max_abs_footstep_adjustment_m),
         "speed_mps": args.speed,
         "seconds": args.seconds,

@@ -231,8 +231,10 @@ def _given(args) -> bool:
 
 
 def _config(fields: dict, args, controller: str) -> SweepConfig:
+    from sweeps.models import check
+
     cfg = SweepConfig(**dict(fields, controller=controller))
-    return cfg.with_overrides(_controller_overrides(args, cfg.model, controller)).validate()
+    return check(cfg.with_overrides(_controller_overrides(args, cfg.model, controller)))
 
 
 def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:

@@ -146,10 +146,8 @@ class SweepConfig:
     def validate(self) -> "SweepConfig":
         """Raise :class:`GridError` naming the first bad value; return ``self``.
 
-        The controller name and its overrides are checked by the model (:func:`sweeps.models.get_model`).
+        The model, the controller name and its overrides are the model's to check (:func:`sweeps.models.check`).
         """
-        from sweeps.models import get_model
-
         if not isinstance(self.controller_overrides, tuple) or any(
                 not (isinstance(kv, tuple) and len(kv) == 2 and isinstance(kv[0], str)) for kv in self.controller_overrides):
             raise GridError(f"controller_overrides must be ((setting, value), ...), got {self.controller_overrides!r}")
@@ -193,7 +191,6 @@ class SweepConfig:
             raise GridError(f"seed must lie in [0, 2**32), got {self.seed}")
         if self.chunk < 1:
             raise GridError(f"chunk must be >= 1, got {self.chunk}")
-        get_model(self.model).check(self)  # the controller and its overrides (GridError naming them)
         return self
 
     def overrides(self) -> dict:

@@ -64,7 +64,7 @@ def holdout_configs(record: dict, model: str, overrides: dict, **grid) -> list[S
     Raises:
         GridError: a bad grid field or override.
     """
-    from sweeps.models import get_model
+    from sweeps.models import check, get_model
 
     m = get_model(model)
     g = dict(m.holdout_grid(record), **grid)
@@ -73,7 +73,7 @@ def holdout_configs(record: dict, model: str, overrides: dict, **grid) -> list[S
     dirs = g.pop("directions")
     g["phases"], g["impulses_ns"] = tuple(g["phases"]), tuple(g["impulses_ns"])
     ov = transfer_overrides(overrides, m.settings(g["controller"]))
-    return [SweepConfig(model=model, direction=d, **g).with_overrides(ov).validate() for d in dirs]
+    return [check(SweepConfig(model=model, direction=d, **g).with_overrides(ov)) for d in dirs]
 
 
 def summary(run) -> dict:

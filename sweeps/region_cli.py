@@ -248,7 +248,7 @@ def run(args, parser) -> int:
         for d in dirs:
             cfg = SweepConfig(model="3lp", controller=args.controller, phases=tuple(phases),
                               impulses_ns=tuple(impulses), direction=d, n_steps=args.n_steps,
-                              push_step=2).with_overrides(args.overrides).validate()
+                              push_step=2).with_overrides(args.overrides)
             maps[d] = run_sweep(cfg, out / f"map-{d}", resume=True, force=True, progress=not args.no_progress,
                                 desc=f"map {d}")
     save_bytes_atomic(out / "boundary.png", boundary_figure(maps, main, dirs, args.controller))

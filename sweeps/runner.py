@@ -40,7 +40,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from sweeps.grid import SweepConfig, grid_inputs
-from sweeps.models import RolloutInputs, get_model
+from sweeps.models import RolloutInputs, check, get_model
 
 CHUNK_DIR = "chunks"
 RESULT_FILES = ("results.npz", "results.csv", "basin.png", "summary.json")
@@ -257,7 +257,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
         SweepConflict: ``out_dir`` holds a different sweep and ``force`` is off.
     """
     t_start = time.perf_counter()
-    config.validate()
+    check(config)
     model = get_model(config.model)
     writer = jax.process_index() == 0
     n, chunk = config.n_rollouts, config.chunk

@@ -157,6 +157,17 @@ def get_model(name: str) -> Model:
     return model
 
 
+def check(config: SweepConfig) -> SweepConfig:
+    """``config`` validated: its fields (:meth:`SweepConfig.validate`), then its model, controller and overrides.
+
+    Raises:
+        GridError: naming the first bad value. ModelUnavailable: a model that cannot run.
+    """
+    config.validate()
+    get_model(config.model).check(config)
+    return config
+
+
 def check_settings(model: str, controller: str, settings, overrides: dict) -> dict:
     """``overrides`` checked against a controller's settings: an unknown key is a ``GridError`` naming it."""
     known = {s.name for s in settings}

@@ -48,6 +48,7 @@ def test_pushes_start_after_the_start_up_phase():
 
 @pytest.mark.parametrize("args", [["push-table", "--impulses", "0,2"], ["push-table", "--phases", "0"],
                                   ["drag", "--seconds", "-1"], ["identify", "--seconds", "1", "--settle", "5"],
+                                  ["push-table", "--set", "hip_attack=2"], ["ten", "--set", "nope=1"],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:

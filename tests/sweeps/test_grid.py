@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, grid_inputs, parse_impulses, parse_phases
+from sweeps.models import check
 
 
 @pytest.mark.parametrize("text, expected", [
@@ -50,7 +51,7 @@ def test_bad_grids_name_the_problem(parse, text, match):
 ])
 def test_validate_names_the_bad_value(fields, match):
     with pytest.raises(GridError, match=match):
-        SweepConfig(**fields).validate()
+        check(SweepConfig(**fields))
 
 
 def test_grid_is_phase_major_and_the_hash_is_the_identity():
@@ -66,8 +67,8 @@ def test_grid_is_phase_major_and_the_hash_is_the_identity():
 
 
 def test_controller_overrides_are_part_of_the_identity_and_round_trip():
-    base = SweepConfig(model="mjx").validate()
-    tuned = base.with_overrides({"zeta": 0.2, "deadzone": [0.004, 0.004, 0.04, 0.04]}).validate()
+    base = check(SweepConfig(model="mjx"))
+    tuned = check(base.with_overrides({"zeta": 0.2, "deadzone": [0.004, 0.004, 0.04, 0.04]}))
     assert tuned.controller_overrides == (("deadzone", (0.004, 0.004, 0.04, 0.04)), ("zeta", 0.2))
     assert tuned.to_dict()["controller_overrides"] == {"deadzone": [0.004, 0.004, 0.04, 0.04], "zeta": 0.2}
     assert len({base.hash(), tuned.hash(), base.with_overrides({"zeta": 0.3}).hash()}) == 3
