@@ -234,7 +234,7 @@ def _config(fields: dict, args, controller: str) -> SweepConfig:
     from sweeps.models import check
 
     cfg = SweepConfig(**dict(fields, controller=controller))
-    return check(cfg.with_overrides(_controller_overrides(args, cfg.model, controller)))
+    return check(cfg.with_overrides(_controller_overrides(args, cfg.model, controller)), build=False)
 
 
 def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
@@ -356,22 +356,24 @@ def _start_distributed(args) -> None:
 
 
 def _sweep(args, parser) -> int:
+    # jax.distributed first: planning imports the models, and importing jaxlp.simulate creates JAX arrays. Every
+    # process gets the same arguments, so a bad one still exits 2 on each, after they have met.
+    _start_distributed(args)
     try:
         plans = plan_runs(args)
     except GridError as e:
         parser.error(str(e))
-    _start_distributed(args)  # before anything creates a JAX array (importing jaxlp.simulate does)
     import jax
 
     from sweeps import report
-    from sweeps.models import ModelUnavailable, get_model
+    from sweeps.models import ModelUnavailable, check
     from sweeps.runner import SweepConflict, run_sweep, save_text_atomic, strict_json
 
     try:
         runnable = []
         for out, cfg, optional, note in plans:
             try:
-                get_model(cfg.model)
+                check(cfg)  # the values too (builds the controllers' configs): after jax.distributed
                 runnable.append((out, cfg, note))
             except ModelUnavailable as e:
                 if not optional:

@@ -162,8 +162,8 @@ def tune(config: TuneConfig, progress: bool = True) -> dict:
             bar.update(1)
         bar.close()
         tuned = best[1]
-        (held_before, held_terms_before), _ = problem.value_and_grad(raw0, "held")
-        (held_after, held_terms_after), _ = problem.value_and_grad(tuned, "held")
+        held_before, held_terms_before = problem.value(raw0, "held")
+        held_after, held_terms_after = problem.value(tuned, "held")
         before, after = problem.constants(raw0), problem.constants(tuned)
         overrides_before, overrides_after = problem.overrides(raw0), problem.overrides(tuned)
     return dict(

@@ -78,6 +78,7 @@ class TuneProblem(NamedTuple):
 
     Attributes:
         raw0: the starting point (a pytree of arrays; the optimiser moves it).
+        value: ``(raw, split) -> (loss, terms)`` without the gradient (held-out checks, finite differences).
         value_and_grad: ``(raw, split) -> ((loss, terms), grad)`` with ``split`` ``"train"`` or ``"held"``;
             ``terms`` a dict of per-scenario arrays with at least ``"fell"``.
         constants: ``raw -> {name: float}`` the tuned constants in physical units (JSON).
@@ -86,6 +87,7 @@ class TuneProblem(NamedTuple):
     """
 
     raw0: Any
+    value: Callable
     value_and_grad: Callable
     constants: Callable[[Any], dict]
     overrides: Callable[[Any], dict]
@@ -104,7 +106,8 @@ class Model(NamedTuple):
         controllers: ``() -> tuple`` the controller names it runs (``compare``'s default first).
         compare_default: ``() -> tuple`` the controllers ``compare`` runs by default.
         settings: ``(controller) -> tuple[Setting, ...]`` a controller's settings (their defaults).
-        check: ``(config) -> None``: raises ``GridError`` naming a bad controller, override or field.
+        check: ``(config, build=True) -> None``: raises ``GridError`` naming a bad controller, override or
+            field (``build=False``: names only, no JAX).
         unavailable: why the model cannot run ("" when it can).
         prepare: optional ``prepare(config, inputs) -> aux`` on a chunk's host arrays, run on one device.
         env_step_s: ``env_step_s(config) -> float``, the simulated time of one environment step.
@@ -117,7 +120,7 @@ class Model(NamedTuple):
     controllers: Callable[[], tuple[str, ...]] = lambda: ()
     compare_default: Callable[[], tuple[str, ...]] = lambda: ()
     settings: Callable[[str], tuple] = lambda name: ()
-    check: Callable[[SweepConfig], None] = lambda config: None
+    check: Callable[..., None] = lambda config, build=True: None
     unavailable: str = ""
     prepare: Callable[[SweepConfig, RolloutInputs], Any] | None = None
     env_step_s: Callable[[SweepConfig], float] | None = None
@@ -157,14 +160,16 @@ def get_model(name: str) -> Model:
     return model
 
 
-def check(config: SweepConfig) -> SweepConfig:
+def check(config: SweepConfig, build: bool = True) -> SweepConfig:
     """``config`` validated: its fields (:meth:`SweepConfig.validate`), then its model, controller and overrides.
+
+    ``build=False`` checks names only and starts no JAX backend (before ``jax.distributed.initialize``).
 
     Raises:
         GridError: naming the first bad value. ModelUnavailable: a model that cannot run.
     """
     config.validate()
-    get_model(config.model).check(config)
+    get_model(config.model).check(config, build)
     return config
 
 

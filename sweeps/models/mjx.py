@@ -61,8 +61,9 @@ def _rollout_module():
     return rollout
 
 
-def check(config: SweepConfig) -> None:
-    """The controller name, its overrides (values checked by building its config) and the walk's timing."""
+def check(config: SweepConfig, build: bool = True) -> None:
+    """The controller name, its overrides and, with ``build``, their values (by building the controller's
+    config, which starts JAX) and the walk's timing."""
     ctrls = _controllers()
     try:
         ctrl = ctrls.get(config.controller)
@@ -72,6 +73,8 @@ def check(config: SweepConfig) -> None:
         raise GridError(f"controller {config.controller} reads the simulator's ground truth; sweeps judge "
                         "controllers on what they measure")
     check_settings("mjx", config.controller, ctrl.settings, config.overrides())
+    if not build:
+        return
     try:
         _, cfg = ctrls.load(config.controller, config.overrides())
         gait = ctrl.gait(cfg)
@@ -83,9 +86,13 @@ def check(config: SweepConfig) -> None:
                         f"{gait.step_time_s:g} s (set its step time with --set, if it has one)")
 
 
-@functools.lru_cache(maxsize=4)
 def nominal_env(sensor_noise_scale: float):
-    """The nominal robot's environment parameters with the sensor noise scaled (host-built, cached)."""
+    """The nominal robot's environment parameters with the sensor noise scaled (host-built, cached per float width)."""
+    return _nominal_env(float(sensor_noise_scale), bool(jax.config.jax_enable_x64))
+
+
+@functools.lru_cache(maxsize=8)
+def _nominal_env(sensor_noise_scale: float, x64: bool):
     from mjx_coman.sensors import make_sensor_params
 
     with jax.ensure_compile_time_eval():
@@ -273,10 +280,12 @@ def tune_problem(tc) -> TuneProblem:
     fns = {split: (jax.jit(lambda r, b=b: loss(r, b)), jax.jit(jax.jacfwd(lambda r, b=b: loss(r, b)[0])))
            for split, b in batches.items()}
 
+    def value(raw, split):
+        loss_v, fell = fns[split][0](raw)
+        return loss_v, dict(fell=fell)
+
     def vg(raw, split):
-        value, grad = fns[split]
-        loss_v, fell = value(raw)
-        return (loss_v, dict(fell=fell)), grad(raw)
+        return value(raw, split), fns[split][1](raw)
 
     def to_values(raw):
         return {k: (tuple(float(x) for x in np.ravel(v)) if np.ndim(v) else float(v))
@@ -292,7 +301,7 @@ def tune_problem(tc) -> TuneProblem:
         return out
 
     raw0 = {k: tf[k][0](jnp.asarray(getattr(cfg0, k))) for k in names}
-    return TuneProblem(raw0=raw0, value_and_grad=vg, constants=constants, overrides=to_values,
+    return TuneProblem(raw0=raw0, value=value, value_and_grad=vg, constants=constants, overrides=to_values,
                        info=dict(tunables=list(names), loss_definition=(
                            "mean square of the sagittal CoM offset from the loaded feet, cm^2, over a "
                            f"{seconds:g} s walk pushed in walking step {tc.push_step}"),

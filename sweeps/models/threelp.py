@@ -53,8 +53,8 @@ def _settings(config: SweepConfig) -> dict:
     return {**{s.name: s.default for s in SETTINGS}, **config.overrides()}
 
 
-def check(config: SweepConfig) -> None:
-    """The controller name and its overrides (``GridError`` naming a bad one)."""
+def check(config: SweepConfig, build: bool = True) -> None:
+    """The controller name and its overrides (``GridError`` naming a bad one); touches no JAX array."""
     if config.controller not in JAXLP_CONTROLLERS:
         raise GridError(f"unknown controller {config.controller!r} for model 3lp; choose one of {', '.join(COMPARE)}")
     check_settings("3lp", config.controller, SETTINGS, config.overrides())
@@ -70,7 +70,10 @@ def check(config: SweepConfig) -> None:
         raise GridError(f"setting zeta={s['zeta']} must lie in (0, 1]")
     if not (math.isfinite(float(s["window_samples"])) and 1 <= float(s["window_samples"]) <= 200):
         raise GridError(f"setting window_samples={s['window_samples']} must lie in [1, 200]")
-    get_params(config.robot)  # ValueError naming an unknown robot
+    from jaxlp.presets import robot_names
+
+    if config.robot not in robot_names():
+        raise GridError(f"unknown robot {config.robot!r}; choose one of {', '.join(robot_names())}")
 
 
 def _sensing_on(config: SweepConfig) -> bool:
@@ -244,7 +247,8 @@ def tune_problem(tc) -> TuneProblem:
                     lqr_weight_scale=tuple(float(v) for v in np.asarray(c.weight_scale)),
                     lateral_deadzone=tuple(float(v) for v in np.asarray(lateral)))
 
-    return TuneProblem(raw0=O.to_raw(seed_c, spec.window_max), value_and_grad=vg, constants=constants,
+    return TuneProblem(raw0=O.to_raw(seed_c, spec.window_max), value=lambda raw, split: vg(raw, split)[0],
+                       value_and_grad=vg, constants=constants,
                        overrides=overrides,
                        info=dict(error_weight=spec.error_weight, lateral_deadzone=np.asarray(lateral).tolist(),
                                  loss_definition="mean over scenarios of a smooth fall indicator plus "

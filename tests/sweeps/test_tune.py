@@ -113,7 +113,10 @@ def test_bad_arguments_exit_2_with_one_line(args, word):
 @pytest.mark.slow
 def test_mjx_forward_mode_gradient_agrees_with_central_differences():
     """Through contact (the MJX tuning problem, float64), the forward-mode gradient of the ground-truth sway
-    against central differences at 1e-5 in the unconstrained coordinates (1e-4 straddles shifted touchdowns)."""
+    against central differences in the unconstrained coordinates. The loss is piecewise smooth: a contact that
+    starts one tick earlier moves it by about 1.6e-3 (measured), so a difference straddling such a jump is off
+    by jump / (2 eps); at 1e-4 and 1e-5 some do, at 1e-6 none (measured). Each constant must agree at two of
+    three steps 1e-6, 2e-6, 4e-6, so one straddled jump cannot fail it and a wrong derivative cannot pass."""
     import jax
     import jax.numpy as jnp
 
@@ -122,11 +125,14 @@ def test_mjx_forward_mode_gradient_agrees_with_central_differences():
     with jax.enable_x64(True):
         p = get_model("mjx").tune_problem(tune.TuneConfig(plant="mjx", batch=1, impulse_max_ns=3.0, x64=True))
         (loss, _), grad = p.value_and_grad(p.raw0, "train")
-        eps = 1e-5
+        assert np.isfinite(float(loss)) and float(loss) > 0
+        value = lambda raw: float(p.value(raw, "train")[0])  # noqa: E731
         for name, g in grad.items():
             for i in range(np.size(g)):
-                e = jnp.zeros_like(p.raw0[name]).reshape(-1).at[i].set(eps).reshape(np.shape(p.raw0[name]))
-                plus = dict(p.raw0, **{name: p.raw0[name] + e})
-                minus = dict(p.raw0, **{name: p.raw0[name] - e})
-                fd = (float(p.value_and_grad(plus, "train")[0][0]) - float(p.value_and_grad(minus, "train")[0][0])) / (2 * eps)
-                np.testing.assert_allclose(np.ravel(g)[i], fd, rtol=1e-2, atol=1e-4, err_msg=f"{name}[{i}]")
+                ad, fds = float(np.ravel(g)[i]), []
+                for eps in (1e-6, 2e-6, 4e-6):
+                    e = jnp.zeros_like(p.raw0[name]).reshape(-1).at[i].set(eps).reshape(np.shape(p.raw0[name]))
+                    fds.append((value(dict(p.raw0, **{name: p.raw0[name] + e}))
+                                - value(dict(p.raw0, **{name: p.raw0[name] - e}))) / (2 * eps))
+                agree = [abs(fd - ad) <= 1e-4 + 1e-2 * abs(fd) for fd in fds]
+                assert sum(agree) >= 2, f"{name}[{i}]: forward mode {ad:.6g}, central differences {fds}"

@@ -37,7 +37,7 @@ from jaxlp import filters
 from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, feet_in_frame, quat_to_rot, rot_z
 from mjx_coman.sensors import Readings
-from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG_INDEX, RIGHT_LEG_INDEX
+from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG, RIGHT_LEG
 
 LEFT_KNEE = JOINT_INDEX["LKneeSag"]
 RIGHT_KNEE = JOINT_INDEX["RKneeSag"]
@@ -83,7 +83,7 @@ def relative_from_feet(left_m: jax.Array, right_m: jax.Array, d) -> jax.Array:
 def measure_feet(readings: Readings) -> tuple[jax.Array, jax.Array]:
     """Pelvis-to-foot-point vectors (left, right) in the heading frame from link encoders and the IMU."""
     q = readings.link_angle_rad
-    feet = feet_in_frame(readings.imu_quat, q[LEFT_LEG_INDEX], q[RIGHT_LEG_INDEX], yaw_free=True)
+    feet = feet_in_frame(readings.imu_quat, q[LEFT_LEG], q[RIGHT_LEG], yaw_free=True)
     return feet.foot_point_m[0], feet.foot_point_m[1]
 
 

@@ -53,6 +53,18 @@ from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, HIP_HALF_WIDTH_M, leg_fk, 
 LEG_JOINTS = ("HipSag", "HipLat", "HipYaw", "KneeSag", "AnkLat", "AnkSag")  # kinematics leg order
 LEFT_LEG_INDEX = np.array([JOINT_INDEX["L" + n] for n in LEG_JOINTS])
 RIGHT_LEG_INDEX = np.array([JOINT_INDEX["R" + n] for n in LEG_JOINTS])
+
+
+def _leg_slice(index: np.ndarray) -> slice:
+    """A leg's joints as a static slice (they are contiguous in ``JOINT_NAMES``): no gather in traced code, whose
+    int64 indices under float64 forward-mode AD met int32 ones (``lax.add`` dtype error)."""
+    if not np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        raise ValueError(f"leg joints {index.tolist()} are not contiguous in JOINT_NAMES")
+    return slice(int(index[0]), int(index[0]) + len(index))
+
+
+LEFT_LEG = _leg_slice(LEFT_LEG_INDEX)
+RIGHT_LEG = _leg_slice(RIGHT_LEG_INDEX)
 LEFT_HIP_PITCH = JOINT_INDEX["LHipSag"]
 RIGHT_HIP_PITCH = JOINT_INDEX["RHipSag"]
 LEFT_KNEE = JOINT_INDEX["LKneeSag"]
@@ -186,7 +198,7 @@ def joint_targets(targets: CartesianTargets, d, posture_q_rad, swing_pitch_rad=0
     r_swing = r_t @ rot_y(jnp.asarray(swing_pitch_rad, q.dtype))
     left = leg_ik(r_t @ left_m, jnp.where(left_swing, r_swing, r_t), 1.0, FOOT_POINT_OFFSET_M)
     right = leg_ik(r_t @ right_m, jnp.where(left_swing, r_t, r_swing), -1.0, FOOT_POINT_OFFSET_M)
-    return q.at[LEFT_LEG_INDEX].set(left.astype(q.dtype)).at[RIGHT_LEG_INDEX].set(right.astype(q.dtype))
+    return q.at[LEFT_LEG].set(left.astype(q.dtype)).at[RIGHT_LEG].set(right.astype(q.dtype))
 
 
 def open_loop_joint_targets(params3lp: ThreeLPParams, gait: Gait, t_s, d, pelvis_height_m, posture_q_rad,
@@ -211,8 +223,8 @@ def feet_from_joints(q_rad, roll_rad) -> tuple[jax.Array, jax.Array]:
     """
     q = jnp.asarray(q_rad)
     r = rot_x(jnp.asarray(roll_rad, q.dtype))
-    left = leg_fk(q[LEFT_LEG_INDEX], 1.0).foot_point_m
-    right = leg_fk(q[RIGHT_LEG_INDEX], -1.0).foot_point_m
+    left = leg_fk(q[LEFT_LEG], 1.0).foot_point_m
+    right = leg_fk(q[RIGHT_LEG], -1.0).foot_point_m
     return r @ left, r @ right
 
 
@@ -226,7 +238,7 @@ def crouched_pelvis_height_m(knee_rad: float = 0.4) -> float:
     from mjx_coman.env import standing_posture
 
     q, _ = standing_posture(float(knee_rad))
-    return float(-np.asarray(leg_fk(jnp.asarray(q[LEFT_LEG_INDEX]), 1.0).foot_point_m)[2])
+    return float(-np.asarray(leg_fk(jnp.asarray(q[LEFT_LEG]), 1.0).foot_point_m)[2])
 
 
 def hip_switch_gamma(t_s, step_time_s, swing) -> jax.Array:
