@@ -18,6 +18,7 @@ SHARED_GROUPS = {
 }
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the markers into the node ids
 def pytest_collection_modifyitems(config, items):
     group_of = {f: g for g, files in SHARED_GROUPS.items() for f in files}
     for item in items:
