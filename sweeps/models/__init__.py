@@ -78,7 +78,9 @@ class TuneProblem(NamedTuple):
 
     Attributes:
         raw0: the starting point (a pytree of arrays; the optimiser moves it).
-        value: ``(raw, split) -> (loss, terms)`` without the gradient (held-out checks, finite differences).
+        value: ``(raw, split) -> (loss, terms)``, the loss alone (held-out checks, finite differences): MJX
+            compiles it apart and so skips the forward-mode gradient; the 3LP reuses ``value_and_grad``'s
+            one compilation, whose reverse-mode gradient costs little.
         value_and_grad: ``(raw, split) -> ((loss, terms), grad)`` with ``split`` ``"train"`` or ``"held"``;
             ``terms`` a dict of per-scenario arrays with at least ``"fell"``.
         constants: ``raw -> {name: float}`` the tuned constants in physical units (JSON).
