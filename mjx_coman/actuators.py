@@ -27,6 +27,19 @@ Position control runs on the motor shaft (eq. 25): ``v = k_p (theta_des -
 theta_m)``, gains 10 V/rad (ankle roll), 100 V/rad (hip pitch), 500 V/rad
 otherwise. Commands reach the motor boards after a transport delay, an
 integer number of control ticks read from a ring buffer (vmappable).
+
+Torque commands (seeds 001 and 004 are torque-controlled) are realised in one
+of two ways, chosen per rollout by ``ActuatorParams.torque_loop`` (an array,
+so one batch can hold both):
+
+* ideal (:data:`TORQUE_IDEAL`): the link receives the desired torque,
+  clipped to what the motor can give at the joint's speed (eq. 20 at the
+  supply voltage, :func:`torque_limits_nm`: +-33 N m at stall), as seed 001's
+  simulation assumes ("torque tracking is ideal");
+* series-elastic (:data:`TORQUE_SEA`): a torque loop on the motor board
+  drives the spring torque to the desired one through the voltage-limited
+  motor (:func:`torque_loop_voltage_v`), with a closed-loop bandwidth and
+  damping ratio as parameters; rigid joints get the eq. 20 feed-forward voltage.
 """
 
 from __future__ import annotations
@@ -52,6 +65,10 @@ NU = len(JOINT_NAMES)
 JOINT_INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
 SEA_MASK = np.array([n in SEA_JOINTS for n in JOINT_NAMES])  # static structure
 MAX_DELAY_TICKS = 32  # static ring-buffer length is MAX_DELAY_TICKS + 1
+MODE_POSITION, MODE_VOLTAGE, MODE_TORQUE = 0, 1, 2  # what a command's target is: motor angles, volts, link torques
+MODES = {"position": MODE_POSITION, "voltage": MODE_VOLTAGE, "torque": MODE_TORQUE}
+TORQUE_IDEAL, TORQUE_SEA = 0, 1
+TORQUE_LOOPS = {"ideal": TORQUE_IDEAL, "sea": TORQUE_SEA}
 
 
 def default_kp_v_per_rad() -> np.ndarray:
@@ -83,6 +100,9 @@ class ActuatorParams:
         spring_damping_nms_per_rad: series spring damping, (NU,).
         kp_v_per_rad: motor-shaft position gains k_d of eq. 25, (NU,).
         delay_ticks: transport delay in control ticks (int32 scalar, <= MAX_DELAY_TICKS).
+        torque_loop: how a torque command is realised, :data:`TORQUE_IDEAL` or :data:`TORQUE_SEA` (int32 scalar).
+        torque_bandwidth_hz: natural frequency of the series-elastic torque loop, Hz.
+        torque_damping_ratio: its damping ratio.
     """
 
     alpha_v_s_per_rad: jax.Array
@@ -96,6 +116,9 @@ class ActuatorParams:
     spring_damping_nms_per_rad: jax.Array
     kp_v_per_rad: jax.Array
     delay_ticks: jax.Array
+    torque_loop: jax.Array
+    torque_bandwidth_hz: jax.Array
+    torque_damping_ratio: jax.Array
 
 
 def _check(name: str, value, *, positive: bool) -> None:
@@ -125,23 +148,31 @@ def make_actuator_params(
     kp_v_per_rad=None,
     delay_s=0.02,
     control_period_s=0.002,
+    torque_loop="ideal",
+    torque_bandwidth_hz=10.0,
+    torque_damping_ratio=1.0,
 ) -> ActuatorParams:
     """Build validated actuator parameters (scalars broadcast to every joint).
 
     Args:
         delay_s: transport delay, rounded to whole control periods.
         control_period_s: control period used to convert ``delay_s`` to ticks.
+        torque_loop: ``"ideal"`` or ``"sea"`` (how torque commands are realised).
         others: see :class:`ActuatorParams`.
 
     Raises:
         ValueError: naming the bad value (non-positive alpha, beta, inertia,
-            supply or period; negative stiffness, damping, friction, gains or
-            delay; a delay longer than ``MAX_DELAY_TICKS`` ticks).
+            supply, period, torque bandwidth or damping ratio; negative
+            stiffness, damping, friction, gains or delay; a delay longer than
+            ``MAX_DELAY_TICKS`` ticks; an unknown torque loop).
     """
+    if torque_loop not in TORQUE_LOOPS:
+        raise ValueError(f"torque_loop={torque_loop!r} is not one of {', '.join(TORQUE_LOOPS)}")
     kp = default_kp_v_per_rad() if kp_v_per_rad is None else kp_v_per_rad
     for name, v in [("alpha_v_s_per_rad", alpha_v_s_per_rad), ("beta_v_per_nm", beta_v_per_nm),
                     ("rotor_inertia_nms2_per_rad", rotor_inertia_nms2_per_rad), ("supply_v", supply_v),
-                    ("coulomb_eps_rad_per_s", coulomb_eps_rad_per_s), ("control_period_s", control_period_s)]:
+                    ("coulomb_eps_rad_per_s", coulomb_eps_rad_per_s), ("control_period_s", control_period_s),
+                    ("torque_bandwidth_hz", torque_bandwidth_hz), ("torque_damping_ratio", torque_damping_ratio)]:
         _check(name, v, positive=True)
     for name, v in [("friction_nms_per_rad", friction_nms_per_rad), ("coulomb_nm", coulomb_nm),
                     ("spring_stiffness_nm_per_rad", spring_stiffness_nm_per_rad),
@@ -165,6 +196,9 @@ def make_actuator_params(
         spring_damping_nms_per_rad=_per_joint(spring_damping_nms_per_rad),
         kp_v_per_rad=_per_joint(kp),
         delay_ticks=jnp.asarray(ticks, jnp.int32),
+        torque_loop=jnp.asarray(TORQUE_LOOPS[torque_loop], jnp.int32),
+        torque_bandwidth_hz=jnp.asarray(torque_bandwidth_hz, float),
+        torque_damping_ratio=jnp.asarray(torque_damping_ratio, float),
     )
 
 
@@ -175,33 +209,46 @@ class ActuatorState(NamedTuple):
         motor_angle_rad: motor shaft angles (link side of the gearbox), (NU,).
             At rigid joints it equals the link angle.
         motor_vel_rad_per_s: shaft velocities, (NU,).
-        buffer: ring buffer of commands, (MAX_DELAY_TICKS + 1, NU).
+        buffer: ring buffer of command targets, (MAX_DELAY_TICKS + 1, NU).
         tick: control ticks since reset (int32).
+        mode_buffer: the command mode of each buffered target (``MODE_*``), (MAX_DELAY_TICKS + 1,) int32.
     """
 
     motor_angle_rad: jax.Array
     motor_vel_rad_per_s: jax.Array
     buffer: jax.Array
     tick: jax.Array
+    mode_buffer: jax.Array
 
 
 def init_actuator_state(q_rad: jax.Array, dq_rad_per_s: jax.Array, initial_command: jax.Array) -> ActuatorState:
-    """Motors at the link angles, the delay line filled with ``initial_command``."""
+    """Motors at the link angles, the delay line filled with the position command ``initial_command``.
+
+    Until a controller's first command has come through the delay, the motor
+    boards hold that position, whatever mode the controller commands in.
+    """
     buf = jnp.broadcast_to(initial_command, (MAX_DELAY_TICKS + 1, NU)).astype(q_rad.dtype)
-    return ActuatorState(q_rad, dq_rad_per_s, buf, jnp.asarray(0, jnp.int32))
+    modes = jnp.full((MAX_DELAY_TICKS + 1,), MODE_POSITION, jnp.int32)
+    return ActuatorState(q_rad, dq_rad_per_s, buf, jnp.asarray(0, jnp.int32), modes)
 
 
-def delay_command(params: ActuatorParams, state: ActuatorState, command: jax.Array) -> tuple[ActuatorState, jax.Array]:
-    """Push this tick's command into the ring buffer; return the one ``delay_ticks`` old.
+def delay_command(params: ActuatorParams, state: ActuatorState, command: jax.Array,
+                  mode=MODE_POSITION) -> tuple[ActuatorState, jax.Array, jax.Array]:
+    """Push this tick's command (and its mode) into the ring buffer; return the ones ``delay_ticks`` old.
 
     The delay is a traced integer index into a static buffer, so rollouts
     with different delays vmap together. ``delay_ticks = 0`` passes the
     command through.
+
+    Returns:
+        ``(state, target, mode)``.
     """
     n = state.buffer.shape[0]
-    buf = state.buffer.at[state.tick % n].set(command)
-    delayed = buf[(state.tick - params.delay_ticks) % n]
-    return state._replace(buffer=buf, tick=state.tick + 1), delayed
+    slot = state.tick % n
+    buf = state.buffer.at[slot].set(command)
+    modes = state.mode_buffer.at[slot].set(jnp.asarray(mode, jnp.int32))
+    old = (state.tick - params.delay_ticks) % n
+    return state._replace(buffer=buf, mode_buffer=modes, tick=state.tick + 1), buf[old], modes[old]
 
 
 def motor_voltage_v(params: ActuatorParams, target: jax.Array, motor_angle_rad: jax.Array,
@@ -212,6 +259,50 @@ def motor_voltage_v(params: ActuatorParams, target: jax.Array, motor_angle_rad: 
     """
     v = jnp.where(voltage_mode, target, params.kp_v_per_rad * (target - motor_angle_rad))
     return jnp.clip(v, -params.supply_v, params.supply_v)
+
+
+def torque_limits_nm(params: ActuatorParams, dq_rad_per_s: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Link torques the motor can give at joint speed ``dq`` (eq. 20 at +-supply, steady shaft).
+
+    ``tau = (+-V - (alpha + beta A_c) q_dot) / beta``: +-33 N m at stall with the
+    seed's 15 V and beta = 0.45 V/(N m), shrinking linearly with speed (Coulomb term ignored).
+    """
+    p = params
+    emf = (p.alpha_v_s_per_rad / p.beta_v_per_nm + p.friction_nms_per_rad) * dq_rad_per_s
+    return -p.supply_v / p.beta_v_per_nm - emf, p.supply_v / p.beta_v_per_nm - emf
+
+
+def ideal_torque_nm(params: ActuatorParams, tau_des_nm: jax.Array, dq_rad_per_s: jax.Array) -> jax.Array:
+    """The ideal torque loop: the desired link torque within :func:`torque_limits_nm`."""
+    lo, hi = torque_limits_nm(params, dq_rad_per_s)
+    return jnp.clip(tau_des_nm, lo, hi)
+
+
+def torque_loop_voltage_v(params: ActuatorParams, state: "ActuatorState", tau_des_nm: jax.Array,
+                          q_rad: jax.Array, dq_rad_per_s: jax.Array) -> jax.Array:
+    """Motor voltage of the series-elastic torque loop (saturated at the supply).
+
+    With the eq. 20 feed-forward ``v = (alpha + beta A_c) theta_dot + beta u`` the
+    motor obeys ``J_m theta_ddot = u - tau_s``; the loop sets
+    ``u = tau_d + K (tau_d - tau_s) - D (theta_dot - q_dot)`` so that, for a still
+    link, the deflection ``delta = theta - q`` obeys
+    ``J_m delta_ddot + (D + (1 + K) b) delta_dot + (1 + K) k delta = (1 + K) tau_d``:
+    the spring torque follows ``tau_d`` as a second-order system of natural
+    frequency ``w = 2 pi bandwidth`` and damping ratio ``zeta`` with
+    ``1 + K = J_m w^2 / k`` and ``D = 2 zeta w J_m - (1 + K) b``.
+    Rigid joints: ``v = beta tau_d + (alpha + beta A_c) q_dot``, exact up to saturation.
+    """
+    p = params
+    th, dth = state.motor_angle_rad, state.motor_vel_rad_per_s
+    k, b, jm = p.spring_stiffness_nm_per_rad, p.spring_damping_nms_per_rad, p.rotor_inertia_nms2_per_rad
+    w = 2.0 * jnp.pi * p.torque_bandwidth_hz
+    gain = jm * w**2 / jnp.maximum(k, 1e-9) - 1.0
+    damp = 2.0 * p.torque_damping_ratio * w * jm - (1.0 + gain) * b
+    tau_s = k * (th - q_rad) + b * (dth - dq_rad_per_s)
+    u = tau_des_nm + gain * (tau_des_nm - tau_s) - damp * (dth - dq_rad_per_s)
+    emf = p.alpha_v_s_per_rad + p.beta_v_per_nm * p.friction_nms_per_rad
+    v = jnp.where(jnp.asarray(SEA_MASK), emf * dth + p.beta_v_per_nm * u, emf * dq_rad_per_s + p.beta_v_per_nm * tau_des_nm)
+    return jnp.clip(v, -p.supply_v, p.supply_v)
 
 
 def _friction_nm(params: ActuatorParams, vel: jax.Array) -> jax.Array:

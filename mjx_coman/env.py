@@ -1,11 +1,13 @@
 """The COMAN environment: pure ``reset`` and ``step`` functions over pytrees.
 
 One control tick (2 ms by default) pushes the command through the transport
-delay, then runs ``n_substeps`` physics steps; in each, the motor boards close
-the position loop on the motor shaft (seed eq. 25), the motors and springs
-are integrated (:mod:`mjx_coman.actuators`) and MJX advances the rigid
-bodies with the link torques as ``ctrl``. The sensors are read at the end of
-the tick.
+delay, then runs ``n_substeps`` physics steps; in each, the motor boards
+turn the command into motor voltages (a position loop on the motor shaft,
+seed eq. 25; raw volts; or a torque loop), the motors and springs are
+integrated (:mod:`mjx_coman.actuators`) and MJX advances the rigid bodies
+with the link torques as ``ctrl``. A torque command under the ideal torque
+loop skips the motors: the link gets the desired torque within the motor's
+limits. The sensors are read at the end of the tick.
 
 Nothing here is jitted or vmapped: do that at the outer boundary, e.g.
 ``jax.jit(jax.vmap(step, in_axes=(batch_axes(params), 0, 0)))``.
@@ -25,15 +27,23 @@ from mujoco import mjx
 
 from mjx_coman import load_model
 from mjx_coman.actuators import (
+    MODE_POSITION,
+    MODE_TORQUE,
+    MODE_VOLTAGE,
+    MODES,
     NU,
     JOINT_INDEX,
+    TORQUE_SEA,
     ActuatorParams,
     ActuatorState,
     actuator_substep,
     delay_command,
+    ideal_torque_nm,
     init_actuator_state,
     make_actuator_params,
     motor_voltage_v,
+    static_spring_deflection_rad,
+    torque_loop_voltage_v,
 )
 from mjx_coman.sensors import Readings, SensorParams, SensorState, init_sensor_state, make_sensor_params, model_ids, read_sensors
 
@@ -75,17 +85,18 @@ class Command(NamedTuple):
     """One control tick's command.
 
     Attributes:
-        target: desired motor angles (rad), or voltages (V) if ``voltage_mode``, (NU,).
+        target: (NU,) desired motor angles (rad), voltages (V) or link torques (N m), by ``mode``.
         torso_force_n: external force on the upper torso (world frame), (3,).
-        voltage_mode: bool scalar; True sends ``target`` as raw voltages.
+        mode: int32 scalar, ``MODE_POSITION``, ``MODE_VOLTAGE`` or ``MODE_TORQUE``
+            (how a torque is realised is the plant's choice: ``ActuatorParams.torque_loop``).
 
-    ``target`` goes through the transport delay (``ActuatorParams.delay_ticks``);
-    ``voltage_mode`` and ``torso_force_n`` act at once.
+    ``target`` and ``mode`` go through the transport delay together
+    (``ActuatorParams.delay_ticks``); ``torso_force_n`` acts at once.
     """
 
     target: jax.Array
     torso_force_n: jax.Array
-    voltage_mode: jax.Array
+    mode: jax.Array
 
 
 class EnvState(NamedTuple):
@@ -108,11 +119,18 @@ class EnvState(NamedTuple):
     time_s: jax.Array
 
 
-def make_command(target, torso_force_n=None, voltage_mode: bool = False) -> Command:
-    """A :class:`Command` with the force defaulting to zero."""
+def make_command(target, torso_force_n=None, mode: str = "position") -> Command:
+    """A :class:`Command` with the force defaulting to zero.
+
+    Raises:
+        ValueError: an unknown ``mode`` (``position``, ``voltage`` or ``torque``).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode={mode!r} is not one of {', '.join(MODES)}")
     target = jnp.asarray(target, float)
-    force = jnp.zeros(3, float) if torso_force_n is None else jnp.asarray(torso_force_n, float)
-    return Command(target, force, jnp.asarray(voltage_mode))
+    dtype = target.dtype
+    force = jnp.zeros(3, dtype) if torso_force_n is None else jnp.asarray(torso_force_n, dtype)
+    return Command(target, force, jnp.asarray(MODES[mode], jnp.int32))
 
 
 def make_env_params(
@@ -247,19 +265,28 @@ def step(params: EnvParams, state: EnvState, command: Command) -> EnvState:
     Args:
         params: environment parameters.
         state: current state.
-        command: motor-angle (or voltage) targets and the torso force.
+        command: motor-angle, voltage or torque targets and the torso force.
 
     Returns:
         the next state, with fresh sensor readings.
     """
-    act, target = delay_command(params.actuator, state.actuator, command.target)
+    p = params.actuator
+    act, target, mode = delay_command(p, state.actuator, command.target, command.mode)
     dt = params.model.opt.timestep
+    torque = mode == MODE_TORQUE
+    ideal = torque & (p.torque_loop != TORQUE_SEA)
 
     def substep(carry, _):
         data, act = carry
         q, dq = data.qpos[7:], data.qvel[6:]
-        v = motor_voltage_v(params.actuator, target, act.motor_angle_rad, command.voltage_mode)
-        act, tau = actuator_substep(params.actuator, act, v, q, dq, dt)
+        v = jnp.where(torque, torque_loop_voltage_v(p, act, target, q, dq),
+                      motor_voltage_v(p, target, act.motor_angle_rad, mode == MODE_VOLTAGE))
+        motor, tau = actuator_substep(p, act, v, q, dq, dt)
+        # Ideal torque loop: the link gets the torque; the motors sit where that torque puts them.
+        tau_ideal = ideal_torque_nm(p, target, dq)
+        held = act._replace(motor_angle_rad=q + static_spring_deflection_rad(p, tau_ideal), motor_vel_rad_per_s=dq)
+        act = jax.tree_util.tree_map(lambda a, b: jnp.where(ideal, a, b), held, motor)
+        tau = jnp.where(ideal, tau_ideal, tau)
         data = data.replace(ctrl=tau, xfrc_applied=torso_wrench(data, command.torso_force_n))
         return (mjx.step(params.model, data), act), None
 

@@ -6,9 +6,10 @@ applied to the upper torso while it lasts. The controller sees only its
 :class:`~mjx_coman.controllers.base.Observation`; the verdict (fell,
 touchdowns, steps to recover, mean speed) comes from the simulator through
 :mod:`mjx_coman.ground_truth`, the same for every controller. A fall is a
-result: a tick whose pelvis drops or tilts too far, or whose state goes
-non-finite, freezes the rollout at its last good state and is recorded
-(``fell``, ``fall_time_s``; ``nan`` says it was non-finite).
+result: a tick whose pelvis drops or tilts too far, whose state goes
+non-finite, or whose controller reports a failed solve (``Telemetry.ok``)
+freezes the rollout at its last good state and is recorded (``fell``,
+``fall_time_s``; ``nan`` and ``solve_failed`` say why).
 
 What to record is a function of the rollout state (as diffrax's
 ``SaveAt(fn=...)``): ``SaveAt(fn, every)`` keeps ``fn(RolloutState)`` every
@@ -66,6 +67,35 @@ def walking_env_params(ankle_roll_kp_v_per_rad: float = WALKING_ANKLE_ROLL_KP_V_
             kp[JOINT_INDEX[side + "AnkLat"]] = ankle_roll_kp_v_per_rad
         actuator_kwargs["kp_v_per_rad"] = kp
     return env_mod.make_env_params(actuator=make_actuator_params(**actuator_kwargs))
+
+
+SEA_TORQUE_DELAY_S = 0.010  # motor-board link delay under the series-elastic torque loop (seed 001: 10 ms)
+
+
+def plant_env_params(plant: str = "position", **actuator_kwargs) -> env_mod.EnvParams:
+    """Environment parameters for a controller's plant (``Gait.plant``).
+
+    * ``"position"``: :func:`walking_env_params` (seed 000's position loops, 20 ms delay);
+    * ``"torque-ideal"``: torques reach the links at once and exactly, within the
+      motor's limits (seed 001's simulation); no transport delay;
+    * ``"torque-sea"``: the series-elastic torque loop at 10 Hz, critically damped,
+      behind a 10 ms transport delay.
+
+    Args:
+        **actuator_kwargs: override :func:`mjx_coman.actuators.make_actuator_params` values.
+
+    Raises:
+        ValueError: an unknown plant (naming the known ones) and bad actuator values.
+    """
+    from mjx_coman.controllers.base import PLANTS
+
+    if plant not in PLANTS:
+        raise ValueError(f"plant={plant!r} is not one of {', '.join(PLANTS)}")
+    if plant == "position":
+        return walking_env_params(**actuator_kwargs)
+    defaults = dict(torque_loop="ideal", delay_s=0.0) if plant == "torque-ideal" else dict(
+        torque_loop="sea", delay_s=SEA_TORQUE_DELAY_S)
+    return env_mod.make_env_params(actuator=make_actuator_params(**{**defaults, **actuator_kwargs}))
 
 
 class WalkSpec(NamedTuple):
@@ -174,6 +204,7 @@ class WalkResult(NamedTuple):
         fell: it fell (or went non-finite).
         fall_time_s: when (``inf`` if it did not).
         nan: the state went non-finite (also counted in ``fell``).
+        solve_failed: the controller reported a failed solve (``Telemetry.ok`` False; also counted in ``fell``).
         touchdowns: feet landings before any fall (:class:`mjx_coman.ground_truth.Touchdowns`).
         steps_to_recover: see :mod:`mjx_coman.ground_truth` (0 unpushed, -1 fell or never settled).
         mean_speed_mps: forward CoM speed over the last half of the touchdowns.
@@ -188,6 +219,7 @@ class WalkResult(NamedTuple):
     fell: jax.Array
     fall_time_s: jax.Array
     nan: jax.Array
+    solve_failed: jax.Array
     touchdowns: jax.Array
     steps_to_recover: jax.Array
     mean_speed_mps: jax.Array
@@ -207,6 +239,7 @@ class _Carry(NamedTuple):
     judge: gt.JudgeState
     fallen: jax.Array
     nan: jax.Array
+    failed: jax.Array
     fall_time: jax.Array
     max_adj: jax.Array
 
@@ -300,7 +333,7 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
     shapes = jax.eval_shape(controller.step, config, ctrl0, obs0)
     tel0, cmd0 = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), (shapes[2], shapes[1]))
     carry0 = _Carry(env=env0, ctrl=ctrl0, telemetry=tel0, command=cmd0, judge=gt.init(judge, spec.seconds, f),
-                    fallen=jnp.zeros((), bool), nan=jnp.zeros((), bool), fall_time=jnp.full((), jnp.inf, f),
+                    fallen=jnp.zeros((), bool), nan=jnp.zeros((), bool), failed=jnp.zeros((), bool), fall_time=jnp.full((), jnp.inf, f),
                     max_adj=jnp.zeros((), f))
 
     def tick(c: _Carry, k):
@@ -310,13 +343,14 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
         cmd = cmd._replace(torso_force_n=_push_force(push, time, dt).astype(f))
         e = env_mod.step(env_params, c.env, cmd)
         finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, tel))
-        bad = ~finite | gt.fallen(e.data, judge)
+        failed = jnp.zeros((), bool) if tel.ok is None else ~jnp.asarray(tel.ok, bool)
+        bad = ~finite | failed | gt.fallen(e.data, judge)
         stop = c.fallen | bad
         new = _Carry(env=e, ctrl=cs, telemetry=tel, command=cmd, judge=gt.update(c.judge, e.data, time + dt, dt, judge),
-                     fallen=c.fallen, nan=c.nan, fall_time=c.fall_time,
+                     fallen=c.fallen, nan=c.nan, failed=c.failed, fall_time=c.fall_time,
                      max_adj=jnp.maximum(c.max_adj, jnp.linalg.norm(tel.footstep_adjustment_m)))
         out = _select(stop, c, new)
-        out = out._replace(fallen=stop, nan=c.nan | (~c.fallen & ~finite),
+        out = out._replace(fallen=stop, nan=c.nan | (~c.fallen & ~finite), failed=c.failed | (~c.fallen & failed),
                            fall_time=jnp.where(bad & ~c.fallen, time + dt, c.fall_time))
         return out, None
 
@@ -336,7 +370,7 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
     pushed = jnp.any(push.force_n != 0)
     v = gt.verdict(c.judge.log, push.start_s + push.duration_s, pushed, c.fallen, judge)
     return WalkResult(
-        fell=c.fallen, fall_time_s=c.fall_time, nan=c.nan, touchdowns=c.judge.log.count,
+        fell=c.fallen, fall_time_s=c.fall_time, nan=c.nan, solve_failed=c.failed, touchdowns=c.judge.log.count,
         steps_to_recover=v.steps_to_recover, mean_speed_mps=v.mean_speed_mps, max_abs_footstep_adjustment_m=c.max_adj,
         log=c.judge.log, step_velocity_mps=v.step_velocity_mps, cycle_velocity_mps=v.cycle_velocity_mps, time_s=time_s,
         saved=saved,

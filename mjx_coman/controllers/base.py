@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT = 0, 1, 2
+PLANTS = ("position", "torque-ideal", "torque-sea")
 
 
 class Setting(NamedTuple):
@@ -117,6 +118,10 @@ class Telemetry(NamedTuple):
         com_m: (2,) estimated CoM (or pelvis) position, m.
         com_vel_mps: (2,) its velocity, m/s.
         extra: controller-specific pytree (``()`` for none).
+        ok: bool scalar, False when the controller could not compute a valid
+            command this tick (a failed or inaccurate QP solve: its command is
+            then a finite fallback); the rollout records it as a fall.
+            ``None`` (the default) for a controller that cannot fail.
     """
 
     support: jax.Array
@@ -127,6 +132,7 @@ class Telemetry(NamedTuple):
     com_m: jax.Array
     com_vel_mps: jax.Array
     extra: Any = ()
+    ok: Any = None
 
 
 def standing_telemetry(dtype=jnp.float32, extra=()) -> Telemetry:
@@ -147,6 +153,10 @@ class Gait(NamedTuple):
         max_forward_mps: largest commanded forward speed it walks, m/s.
         max_lateral_mps: largest commanded lateral speed, m/s (0: it does not side-step).
         max_turn_rad_per_s: largest commanded turn rate, rad/s (0: it does not turn).
+        plant: how its commands reach the joints, one of :data:`PLANTS`: ``"position"``
+            (motor-angle commands through the seed 000 position loops), ``"torque-ideal"``
+            (link torques, ideal tracking), ``"torque-sea"`` (link torques through the
+            series-elastic torque loop); :func:`mjx_coman.rollout.plant_env_params` builds it.
     """
 
     knee_rad: float
@@ -156,6 +166,7 @@ class Gait(NamedTuple):
     max_forward_mps: float
     max_lateral_mps: float = 0.0
     max_turn_rad_per_s: float = 0.0
+    plant: str = "position"
 
     def check_joystick(self, forward_mps: float, lateral_mps: float = 0.0, turn_rad_per_s: float = 0.0) -> None:
         """Raise ``ValueError`` naming a commanded velocity beyond what the controller walks."""

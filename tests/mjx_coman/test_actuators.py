@@ -69,7 +69,7 @@ def test_delay_line_returns_the_command_from_n_ticks_ago(delay_s, ticks):
     st = act.init_actuator_state(jnp.zeros(NU), jnp.zeros(NU), jnp.full(NU, -1.0))
     out = []
     for k in range(40):
-        st, d = act.delay_command(p, st, jnp.full(NU, float(k)))
+        st, d, _ = act.delay_command(p, st, jnp.full(NU, float(k)))
         out.append(float(d[0]))
     expected = [k - ticks if k >= ticks else -1.0 for k in range(40)]
     assert out == expected
@@ -84,7 +84,7 @@ def test_delay_vmaps_over_rollouts():
 
     def run(pp, s):
         def body(s, k):
-            s, d = act.delay_command(pp, s, jnp.full(NU, k))
+            s, d, _ = act.delay_command(pp, s, jnp.full(NU, k))
             return s, d[0]
         return jax.lax.scan(body, s, jnp.arange(1.0, 21.0))[1]
 
@@ -135,3 +135,64 @@ def test_link_torque_is_differentiable_in_the_stiffness():
 def test_bad_parameters_raise(kwargs, name):
     with pytest.raises(ValueError, match=name):
         act.make_actuator_params(**kwargs)
+
+
+def test_torque_limits_follow_eq20_at_the_supply():
+    p = act.make_actuator_params()
+    lo, hi = act.torque_limits_nm(p, jnp.zeros(NU))
+    np.testing.assert_allclose(np.asarray(hi), 15.0 / 0.45, rtol=1e-6)  # 33.3 N m at stall
+    np.testing.assert_allclose(np.asarray(lo), -15.0 / 0.45, rtol=1e-6)
+    lo, hi = act.torque_limits_nm(p, jnp.full(NU, 1.0))  # 1 rad/s: (15 - 5.42 - 0.45 * 1.66) / 0.45
+    np.testing.assert_allclose(np.asarray(hi), (15.0 - 5.42 - 0.45 * 1.66) / 0.45, rtol=1e-6)
+    no_load = 15.0 / (5.42 + 0.45 * 1.66)  # the seed's theoretic velocity bound: no torque left
+    assert float(act.torque_limits_nm(p, jnp.full(NU, no_load))[1][0]) == pytest.approx(0.0, abs=1e-5)
+    tau = act.ideal_torque_nm(p, jnp.full(NU, 50.0), jnp.zeros(NU))
+    np.testing.assert_allclose(np.asarray(tau), 15.0 / 0.45, rtol=1e-6)
+
+
+def _torque_loop_on_fixed_link(params, tau_des, n_steps, dt=0.001):
+    """Every joint's link is held still; the torque loop drives the spring (SEA) or the joint (rigid)."""
+    q0 = jnp.zeros(NU)
+
+    def body(st, _):
+        v = act.torque_loop_voltage_v(params, st, tau_des, q0, q0)
+        st, tau = act.actuator_substep(params, st, v, q0, q0, dt)
+        return st, tau
+
+    _, taus = jax.lax.scan(body, act.init_actuator_state(q0, q0, q0), None, length=n_steps)
+    return np.asarray(taus)
+
+
+@pytest.mark.parametrize("bandwidth_hz", [5.0, 10.0, 20.0])
+def test_series_elastic_torque_loop_is_the_designed_second_order_system(bandwidth_hz):
+    # Without spring damping the link torque is k (theta - q), the designed output.
+    p = act.make_actuator_params(torque_loop="sea", torque_bandwidth_hz=bandwidth_hz, spring_damping_nms_per_rad=0.0)
+    dt, n = 0.0002, 3000
+    taus = _torque_loop_on_fixed_link(p, jnp.full(NU, 3.0), n, dt)
+    # Critically damped step response 1 - (1 + w t) exp(-w t), from the spring at rest.
+    w = 2 * np.pi * bandwidth_hz
+    t = dt * np.arange(n)
+    expected = 3.0 * (1 - (1 + w * t) * np.exp(-w * t))
+    knee = taus[:, KNEE]
+    assert np.max(np.abs(knee - expected)) < 0.02 * 3.0
+    assert knee[-1] == pytest.approx(3.0, rel=1e-3)
+    # With the model's spring damping the loop still settles on the desired torque.
+    damped = _torque_loop_on_fixed_link(act.make_actuator_params(torque_loop="sea", torque_bandwidth_hz=bandwidth_hz),
+                                        jnp.full(NU, 3.0), n, dt)
+    assert damped[-1, KNEE] == pytest.approx(3.0, rel=1e-3)
+    rigid = ~SEA_MASK
+    np.testing.assert_allclose(taus[:, rigid], 3.0, rtol=1e-6)  # rigid joints: eq. 20 feed-forward is exact
+
+
+def test_torque_loop_saturates_at_the_supply():
+    p = act.make_actuator_params(torque_loop="sea")
+    taus = _torque_loop_on_fixed_link(p, jnp.full(NU, 100.0), 800)
+    assert np.all(taus[-1] <= 15.0 / 0.45 + 1e-3)  # 100 N m asked, 33 N m at stall given
+    assert taus[-1, KNEE] == pytest.approx(15.0 / 0.45, rel=0.02)
+
+
+def test_unknown_torque_loop_is_refused():
+    with pytest.raises(ValueError, match="torque_loop='fast'"):
+        act.make_actuator_params(torque_loop="fast")
+    with pytest.raises(ValueError, match="torque_bandwidth_hz"):
+        act.make_actuator_params(torque_bandwidth_hz=0.0)

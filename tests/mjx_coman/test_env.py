@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mjx_coman import env, experiments
+from mjx_coman import actuators as act
 from mjx_coman.actuators import JOINT_INDEX, NU, make_actuator_params
 
 KNEE = JOINT_INDEX["RKneeSag"]
@@ -131,3 +132,38 @@ def test_mass_randomisation_through_the_model(env_params, reset_state, standing_
     _, heavy_rec = experiments.run(p2, reset_state, tg, np.zeros((n, 3)))
     total = lambda r: r["normal_n"][-20:].sum(axis=1).mean()
     assert total(heavy_rec) - total(light) == pytest.approx(5.0 * 9.81, rel=0.05)
+
+
+def test_torque_commands_reach_the_links_after_the_delay(env_params, reset_state, standing_q):
+    """Ideal torque loop: the link gets the commanded torque (within eq. 20's limits) once it is through the delay."""
+    plants = [make_actuator_params(torque_loop="ideal", delay_s=0.0), make_actuator_params(torque_loop="ideal", delay_s=0.004),
+              make_actuator_params(torque_loop="sea", delay_s=0.0)]
+    n = len(plants)
+    params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(lambda *x: jnp.stack(x), *plants),
+                                 sensor=jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), env_params.sensor))
+    states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), reset_state)
+    tau = jnp.full(NU, 2.0).at[KNEE].set(50.0)  # the knee asks for more than the motor can give
+    cmd = env.make_command(tau, mode="torque")
+
+    @jax.jit
+    def run(p, s):
+        def one(pp, ss):
+            return jax.lax.scan(lambda c, _: (env.step(pp, c, cmd),) * 2, ss, None, length=5)[1]
+        return jax.vmap(one, in_axes=(env.batch_axes(p), 0))(p, s)
+
+    traj = run(params, states)
+    ctrl = np.asarray(traj.data.ctrl)  # (plant, tick, NU): the last substep's link torques
+    others = np.arange(NU) != KNEE
+    np.testing.assert_allclose(ctrl[0, :, others], 2.0, rtol=1e-6)
+    # clipped at the speed-dependent limit: the light shank speeds up to the motor's no-load speed, no further
+    assert np.all((ctrl[0, :, KNEE] > 0) & (ctrl[0, :, KNEE] <= 15.0 / 0.45 + 1e-4))
+    assert ctrl[0, -1, KNEE] < 0.5 * 15.0 / 0.45
+    assert np.max(np.abs(np.asarray(traj.data.qvel)[0, :, 6 + KNEE])) < 15.0 / (5.42 + 0.45 * 1.66) + 0.05
+    # 2 ticks of delay: the boards hold the reset position until the first torque command arrives
+    assert not np.allclose(ctrl[1, :2, others], 2.0, atol=0.1)
+    np.testing.assert_allclose(ctrl[1, 2:, others], 2.0, rtol=1e-6)
+    # series-elastic loop: rigid joints get the torque by the eq. 20 feed-forward at once
+    rigid = ~act.SEA_MASK
+    np.testing.assert_allclose(ctrl[2, :, rigid & others], 2.0, rtol=1e-4)
+    with pytest.raises(ValueError, match="mode='current'"):
+        env.make_command(tau, mode="current")

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 
 from mjx_coman.controllers.base import Controller, Gait, Setting, standing_telemetry
-from mjx_coman.env import Command, standing_posture
+from mjx_coman.env import MODE_POSITION, Command, standing_posture
 
 
 @functools.partial(jax.tree_util.register_dataclass, data_fields=["posture_rad", "gain", "damping_s"],
@@ -43,7 +43,7 @@ def step(config: Config, state, obs):
     target = config.posture_rad + config.gain * (config.posture_rad - r.motor_angle_rad) \
         - config.damping_s * r.motor_vel_rad_per_s
     dtype = r.motor_angle_rad.dtype
-    return state, Command(target.astype(dtype), jnp.zeros(3, dtype), jnp.asarray(False)), standing_telemetry(dtype)
+    return state, Command(target.astype(dtype), jnp.zeros(3, dtype), jnp.asarray(MODE_POSITION, jnp.int32)), standing_telemetry(dtype)
 
 
 CONTROLLER = Controller(

@@ -92,7 +92,7 @@ from mjx_coman.controllers.time_projection.open_loop import (
     knee_compensation,
     targets_from_state,
 )
-from mjx_coman.env import Command
+from mjx_coman.env import MODE_POSITION, Command
 from mjx_coman.sensors import Readings
 
 LEFT_ANKLE_PITCH = int(LEFT_LEG_INDEX[5])
@@ -313,7 +313,7 @@ def step(params: Config, state: ControllerState, obs: Observation
     target = motor_targets_block(params, q_des, t, d, force, readings, walking)
     new = ControllerState(tick=tick + 1, step=step_idx, d=d, filt=filt, force_n=force, error=e.error,
                           adjustment_m=adj, held_m=held)
-    command = Command(target.astype(readings.motor_angle_rad.dtype), jnp.zeros(3, target.dtype), jnp.asarray(False))
+    command = Command(target.astype(readings.motor_angle_rad.dtype), jnp.zeros(3, target.dtype), jnp.asarray(MODE_POSITION, jnp.int32))
     return new, command, telemetry(params, tick, step_idx, d, speed, adj, e, raw)
 
 

@@ -42,7 +42,7 @@ def test_init_and_step_jit_and_vmap_over_a_batch_of_4(name, walking_env, reset_s
     tile = lambda x: jnp.broadcast_to(x, (4, *jnp.shape(x)))  # noqa: E731
     obs = jax.tree_util.tree_map(tile, Observation(reset_state.readings, controllers.joystick(), jnp.zeros(())))
     states, cmd, tel = jax.jit(jax.vmap(ctrl.step, in_axes=(None, 0, 0)))(config, states, obs)
-    assert cmd.target.shape == (4, NU) and cmd.torso_force_n.shape == (4, 3) and cmd.voltage_mode.shape == (4,)
+    assert cmd.target.shape == (4, NU) and cmd.torso_force_n.shape == (4, 3) and cmd.mode.shape == (4,)
     assert isinstance(tel, Telemetry) and _finite((states, cmd, tel))
     assert tel.support.dtype == jnp.int32 and tel.step.dtype == jnp.int32 and tel.support.shape == (4,)
     for field in ("next_footstep_m", "footstep_adjustment_m", "com_m", "com_vel_mps"):
