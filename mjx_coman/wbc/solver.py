@@ -7,8 +7,8 @@ derivative is a ``jax.custom_jvp``: the implicit-function theorem on the KKT con
     Q dx + A^T dy + G^T dz = -(dQ x + dq + dA^T y + dG^T z),   A dx = db - dA x,
     G dx + ds = dh - dG x,                                      z ds + s dz = 0,
 
-solved with qpax's own KKT factorization (``factorize_kkt``, ``solve_kkt_rhs``, those of its Newton steps)
-with ``s, z`` floored at eps^(3/4) (qpax's sqrt(eps) floor gave derivatives off by up to 3e-5 relative
+solved with qpax's own KKT factorization (``factorize_kkt``, that of its Newton steps, turned into dense
+inverses so that the tangents meet only products) and the steps of its ``solve_kkt_rhs``, with ``s, z`` floored at eps^(3/4) (qpax's sqrt(eps) floor gave derivatives off by up to 3e-5 relative
 against central differences; eps^(3/4): 1e-7). A JVP rule gives forward mode (which this
 project's walks use) and, being linear in the tangents, reverse mode by transposition, with one solve and
 no second call for the diagnostics (``qpax.solve_qp_primal`` returns only ``x``; its ``custom_vjp`` runs
@@ -16,10 +16,15 @@ no second call for the diagnostics (``qpax.solve_qp_primal`` returns only ``x``;
 that smoothed problem). Here the derivative is the exact one of the solution where the active set does
 not change; it is zeroed where the solve was not finite.
 
-Precision. The simulator runs float32. ``solve(..., float64=True)`` (the default) solves in float64 when
-x64 is enabled (``jax.config.update("jax_enable_x64", True)`` or ``with jax.enable_x64(True):``) and casts
-the results back to the plant's dtype; without x64 it solves in float32 with a looser tolerance (see
-:data:`TOLERANCES`), whose ``info.ok`` then says whether that solve was accurate.
+Precision. The simulator runs float32, and so can the QP: on standing QPs (double and single support,
+binding torque and friction rows) qpax's float32 iterates agree with proxsuite's float64 solution to
+~1e-5 (scaled unknowns; ~1e-5 N m in torque) within 8-10 iterations, and the KKT measure reaches ~4e-6
+(tests/mjx_coman/wbc/test_wbc_float32.py). A QP is solved in its own dtype; ``float64=True`` solves it in
+float64 when x64 is enabled (``jax.config.update("jax_enable_x64", True)`` or ``with jax.enable_x64(True):``)
+and casts the result back, tolerances following the solving dtype (:data:`TOLERANCES`).
+
+Batching. On CPU every solve and factorization runs as a loop over the batch (see :func:`_per_problem`:
+jaxlib 0.10.2's batched CPU LAPACK kernels deadlock a small thread pool); elsewhere it is a plain vmap.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from typing import NamedTuple, Sequence
 import jax
 import jax.numpy as jnp
 import qpax
-from qpax.explicit.pdip import factorize_kkt, solve_kkt_rhs
+from qpax.explicit.pdip import factorize_kkt
 
 from mjx_coman.wbc.plant import N_BASE, N_CORNERS, N_FEET, Plant
 from mjx_coman.wbc.qp import QP, build_qp
@@ -76,12 +81,41 @@ class WbcSolution(NamedTuple):
     info: WbcInfo
 
 
+def _per_problem(fn):
+    """``fn`` batched as a loop over the problems on CPU (``jax.custom_batching.sequential_vmap``), as a
+    ``vmap`` elsewhere.
+
+    jaxlib 0.10.2 spreads a batched CPU LAPACK call (``potrf``, ``trsm``) over the intra-op thread pool
+    and blocks its own pool thread until the pieces finish (``ParallelBatchMap`` -> ``BlockingCounter::Wait``);
+    when the thunk executor runs as many such calls at once as the pool has threads (2 on this machine),
+    every thread waits and the program hangs. Measured here: a vmapped qpax solve of 256 or 1024 QPs hung
+    within one to three calls (gdb: both Eigen threads in ``ParallelBatchMap`` under ``lapack_dtrsm_ffi``).
+    A loop issues one unbatched call at a time and is as fast on CPU (measured, bench/wbc_qp.py).
+    """
+    if jax.default_backend() != "cpu":
+        return fn
+    return jax.custom_batching.sequential_vmap(fn)
+
+
 @functools.partial(jax.custom_jvp, nondiff_argnums=(6, 7))
 def qpax_solve(Q, q, A, b, G, h, tol: float, max_iter: int):
     """``(x, s, z, y, converged, iterations)`` of ``qpax.solve_qp`` (the last two as floats), differentiable
     in forward and reverse mode by the implicit-function theorem (module docstring)."""
-    x, s, z, y, conv, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=tol, max_iter=max_iter)
-    return x, s, z, y, jnp.asarray(conv, Q.dtype), jnp.asarray(iters, Q.dtype)
+
+    def one(Q, q, A, b, G, h):
+        x, s, z, y, conv, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=tol, max_iter=max_iter)
+        return x, s, z, y, jnp.asarray(conv, Q.dtype), jnp.asarray(iters, Q.dtype)
+
+    return _per_problem(one)(Q, q, A, b, G, h)
+
+
+def _kkt_inverses(Q, G, A, s, z):
+    """``(z / s, H^-1, F^-1)`` of qpax's reduced KKT system ``H = Q + G' diag(z / s) G``, ``F = A H^-1 A'``
+    (qpax's ``factorize_kkt``), as dense inverses so that the tangent solves are plain products."""
+    p_inv, l_h, l_f = factorize_kkt(Q, G, A, s, z)
+    h_inv = jax.scipy.linalg.cho_solve(l_h, jnp.eye(Q.shape[0], dtype=Q.dtype))
+    f_inv = jax.scipy.linalg.cho_solve(l_f, jnp.eye(A.shape[0], dtype=Q.dtype))
+    return p_inv, h_inv, f_inv
 
 
 @qpax_solve.defjvp
@@ -93,10 +127,17 @@ def _qpax_solve_jvp(tol, max_iter, primals, tangents):
     floor = jnp.finfo(s.dtype).eps ** 0.75  # only keeps z / s finite (measured: qpax's sqrt(eps) biased it)
     s_f, z_f = jnp.maximum(s, floor), jnp.maximum(z, floor)
     Qs, dQs = 0.5 * (Q + Q.T), 0.5 * (dQ + dQ.T)
-    p_inv, l_h, l_f = factorize_kkt(Qs, G, A, s_f, z_f)
+    # primal-only factorization (a loop on CPU, see _per_problem); the tangents see only products, which
+    # are linear and transpose for reverse mode; the steps are qpax's solve_kkt_rhs with v2 = 0
+    p_inv, h_inv, f_inv = _per_problem(_kkt_inverses)(Qs, G, A, s_f, z_f)
     v1 = -(dQs @ x + dq + dA.T @ y + dG.T @ z)
-    dx, ds, dz, dy = solve_kkt_rhs(G, A, s_f, z_f, p_inv, l_h, l_f, v1, jnp.zeros_like(s), dh - dG @ x, db - dA @ x)
-    good = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in (x, s, z, l_h[0], l_f[0])]))
+    v3, v4 = dh - dG @ x, db - dA @ x
+    p1 = v1 + G.T @ (p_inv * v3)
+    dy = f_inv @ (A @ (h_inv @ p1) - v4)
+    dx = h_inv @ (p1 - A.T @ dy)
+    ds = v3 - G @ dx
+    dz = -z_f * ds / s_f
+    good = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in (x, s, z, h_inv, f_inv)]))
     zero = lambda t: jnp.where(good, t, jnp.zeros_like(t))  # noqa: E731
     return out, (zero(dx), zero(ds), zero(dz), zero(dy), jnp.zeros_like(conv), jnp.zeros_like(iters))
 

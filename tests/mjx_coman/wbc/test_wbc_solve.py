@@ -212,3 +212,33 @@ def test_bad_inputs_raise_naming_the_value(cases):
         wbc.build_qp(p, tasks, (1, 1), -lim, lim, n_faces=3)
     with pytest.raises(ValueError, match="selection"):
         wbc.momentum_rate_task(p.cmm, p.cmm_bias, np.zeros(6), 1.0, selection=(0, 6))
+
+
+def _linalg_operand_ranks(jaxpr):
+    """Ranks of the matrix operands of every Cholesky and triangular solve in a jaxpr, nested ones too."""
+    out = []
+    for eqn in jaxpr.eqns:
+        if eqn.primitive.name in ("cholesky", "triangular_solve"):
+            out.append(eqn.invars[0].aval.ndim)
+        for p in eqn.params.values():
+            for j in (p if isinstance(p, (tuple, list)) else [p]):
+                inner = getattr(j, "jaxpr", j)
+                if hasattr(inner, "eqns"):
+                    out += _linalg_operand_ranks(inner)
+    return out
+
+
+def test_batched_solves_issue_no_batched_lapack_calls_on_cpu(cases):
+    """jaxlib 0.10.2's batched CPU LAPACK kernels can deadlock the 2-thread pool (mjx_coman.wbc.solver
+    ._per_problem): under vmap, in forward and reverse mode, every factorization and solve stays unbatched."""
+    assert jax.default_backend() == "cpu"
+    args = _inputs(cases)
+    forward = jax.make_jaxpr(jax.vmap(lambda *r: _one(*r, fixed=False)[1].tau))(*args)
+
+    def loss(w):
+        return jnp.sum(jax.vmap(lambda *r: _one(*r, w, fixed=False)[1].tau)(*args[:-1]))
+
+    reverse = jax.make_jaxpr(jax.grad(loss))(GRAD_W)
+    for jaxpr in (forward, reverse):
+        ranks = _linalg_operand_ranks(jaxpr.jaxpr)
+        assert len(ranks) >= 4 and max(ranks) == 2, ranks
