@@ -6,7 +6,7 @@ The QPs are those of a standing balance tick (:func:`mjx_coman.wbc.reference.sta
 standing states built with MuJoCo's C functions (:mod:`mjx_coman.wbc.reference`; every fourth state on
 the left foot only), full body and with the upper body fixed. Each configuration (dtype, body, batch)
 is one jitted ``vmap`` of :func:`mjx_coman.wbc.solve_qp` on the assembled QPs (assembly not timed; on
-CPU the vmap runs the solves as a loop, see :func:`mjx_coman.wbc.solver._per_problem`);
+CPU the vmap runs the solves as a loop, see :func:`mjx_coman.wbc.batching.per_problem`);
 compilation is timed apart and the best of ``--repeats`` runs is reported; batch 1 is the median of
 ``--latency-calls`` calls. proxsuite (ProxQP, dense, through ``qpsolvers.solve_qp(..., solver="proxqp")``,
 so including qpsolvers' Python conversion) solves the float64 QPs one by one on one core to 1e-9.
@@ -113,7 +113,7 @@ def iterations_to_tol(qp, dtype, batch: int = 64) -> dict:
         return wbc.kkt_residual(d.Q, d.q, d.A, d.G, d.h, x, z, y)
 
     pairs = (jax.tree_util.tree_map(lambda a: jnp.repeat(a, len(caps), axis=0), data), jnp.tile(caps, batch))
-    # a loop, not a vmap: batched CPU LAPACK calls can deadlock (mjx_coman.wbc.solver._per_problem)
+    # a loop, not a vmap: batched CPU LAPACK calls can deadlock (mjx_coman.wbc.batching.per_problem)
     kkt = jax.jit(lambda p: jax.lax.map(lambda pc: kkt_at(*pc), p))(pairs).reshape(batch, len(caps))
     passed = np.asarray(kkt) < tols["kkt"]
     first = np.where(passed.any(1), passed.argmax(1) + 1, -1)

@@ -9,8 +9,9 @@ a list of :class:`Task` s from the builders of :mod:`mjx_coman.wbc.tasks` (or it
 
 Modules: :mod:`~mjx_coman.wbc.plant` (inputs), :mod:`~mjx_coman.wbc.tasks` (soft rows, PD laws),
 :mod:`~mjx_coman.wbc.contacts` (stance and friction rows), :mod:`~mjx_coman.wbc.qp` (assembly, export to a
-reference solver), :mod:`~mjx_coman.wbc.solver` (qpax, diagnostics, fallback, derivatives; float64 when x64
-is enabled: see there), :mod:`~mjx_coman.wbc.reference` (plants from MuJoCo's C functions for tests).
+reference solver), :mod:`~mjx_coman.wbc.solver` (qpax, diagnostics, fallback, derivatives, float32 or
+float64: see there), :mod:`~mjx_coman.wbc.batching` (on CPU a loop over the batch: jaxlib 0.10.2's batched
+LAPACK kernels deadlock), :mod:`~mjx_coman.wbc.reference` (plants from MuJoCo's C functions for tests).
 """
 
 from mjx_coman.wbc.plant import Plant, check_plant, plant_from
@@ -48,7 +49,8 @@ from mjx_coman.wbc.tasks import (
 
 __all__ = [
     "Plant", "check_plant", "plant_from", "QP", "build_qp", "export_qp", "problem_size", "WbcInfo",
-    "WbcSolution", "fallback_torque", "kkt_residual", "qpax_solve", "solution", "solve", "solve_qp", "Task", "com_task", "foot_task",
+    "WbcSolution", "fallback_torque", "kkt_residual", "qpax_solve", "solution", "solve", "solve_qp", "Task",
+    "com_task", "foot_task",
     "force_distribution_task", "force_regularization", "frame_velocity", "joint_acc_task", "joint_pd",
     "momentum_rate_task", "motion_task", "null_space_task", "orientation_error", "orientation_pd",
     "pelvis_orientation_task", "position_pd", "posture_task", "qdd_regularization", "torso_orientation_task",

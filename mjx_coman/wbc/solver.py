@@ -8,9 +8,9 @@ derivative is a ``jax.custom_jvp``: the implicit-function theorem on the KKT con
     G dx + ds = dh - dG x,                                      z ds + s dz = 0,
 
 solved with qpax's own KKT factorization (``factorize_kkt``, that of its Newton steps, turned into dense
-inverses so that the tangents meet only products) and the steps of its ``solve_kkt_rhs``, with ``s, z`` floored at eps^(3/4) (qpax's sqrt(eps) floor gave derivatives off by up to 3e-5 relative
-against central differences; eps^(3/4): 1e-7). A JVP rule gives forward mode (which this
-project's walks use) and, being linear in the tangents, reverse mode by transposition, with one solve and
+inverses so that the tangents meet only products) and the steps of its ``solve_kkt_rhs``, with ``s, z``
+floored at eps^(3/4) (qpax's sqrt(eps) floor gave derivatives off by up to 3e-5 relative against central
+differences; eps^(3/4): 1e-7). A JVP rule gives forward mode (which this project's walks use) and, being linear in the tangents, reverse mode by transposition, with one solve and
 no second call for the diagnostics (``qpax.solve_qp_primal`` returns only ``x``; its ``custom_vjp`` runs
 ``solve_qp`` and then ``relax_qp`` to a KKT point relaxed by ``target_kappa = 1e-3`` and differentiates
 that smoothed problem). Here the derivative is the exact one of the solution where the active set does
@@ -23,8 +23,8 @@ binding torque and friction rows) qpax's float32 iterates agree with proxsuite's
 float64 when x64 is enabled (``jax.config.update("jax_enable_x64", True)`` or ``with jax.enable_x64(True):``)
 and casts the result back, tolerances following the solving dtype (:data:`TOLERANCES`).
 
-Batching. On CPU every solve and factorization runs as a loop over the batch (see :func:`_per_problem`:
-jaxlib 0.10.2's batched CPU LAPACK kernels deadlock a small thread pool); elsewhere it is a plain vmap.
+Batching. On CPU every solve and factorization runs as a loop over the batch (jaxlib 0.10.2's batched CPU
+LAPACK kernels deadlock a small thread pool: :func:`mjx_coman.wbc.batching.per_problem`); elsewhere a vmap.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import qpax
 from qpax.explicit.pdip import factorize_kkt
 
+from mjx_coman.wbc.batching import per_problem
 from mjx_coman.wbc.plant import N_BASE, N_CORNERS, N_FEET, Plant
 from mjx_coman.wbc.qp import QP, build_qp
 from mjx_coman.wbc.tasks import Task
@@ -81,22 +82,6 @@ class WbcSolution(NamedTuple):
     info: WbcInfo
 
 
-def _per_problem(fn):
-    """``fn`` batched as a loop over the problems on CPU (``jax.custom_batching.sequential_vmap``), as a
-    ``vmap`` elsewhere.
-
-    jaxlib 0.10.2 spreads a batched CPU LAPACK call (``potrf``, ``trsm``) over the intra-op thread pool
-    and blocks its own pool thread until the pieces finish (``ParallelBatchMap`` -> ``BlockingCounter::Wait``);
-    when the thunk executor runs as many such calls at once as the pool has threads (2 on this machine),
-    every thread waits and the program hangs. Measured here: a vmapped qpax solve of 256 or 1024 QPs hung
-    within one to three calls (gdb: both Eigen threads in ``ParallelBatchMap`` under ``lapack_dtrsm_ffi``).
-    A loop issues one unbatched call at a time and is as fast on CPU (measured, bench/wbc_qp.py).
-    """
-    if jax.default_backend() != "cpu":
-        return fn
-    return jax.custom_batching.sequential_vmap(fn)
-
-
 @functools.partial(jax.custom_jvp, nondiff_argnums=(6, 7))
 def qpax_solve(Q, q, A, b, G, h, tol: float, max_iter: int):
     """``(x, s, z, y, converged, iterations)`` of ``qpax.solve_qp`` (the last two as floats), differentiable
@@ -106,7 +91,7 @@ def qpax_solve(Q, q, A, b, G, h, tol: float, max_iter: int):
         x, s, z, y, conv, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=tol, max_iter=max_iter)
         return x, s, z, y, jnp.asarray(conv, Q.dtype), jnp.asarray(iters, Q.dtype)
 
-    return _per_problem(one)(Q, q, A, b, G, h)
+    return per_problem(one)(Q, q, A, b, G, h)
 
 
 def _kkt_inverses(Q, G, A, s, z):
@@ -127,9 +112,9 @@ def _qpax_solve_jvp(tol, max_iter, primals, tangents):
     floor = jnp.finfo(s.dtype).eps ** 0.75  # only keeps z / s finite (measured: qpax's sqrt(eps) biased it)
     s_f, z_f = jnp.maximum(s, floor), jnp.maximum(z, floor)
     Qs, dQs = 0.5 * (Q + Q.T), 0.5 * (dQ + dQ.T)
-    # primal-only factorization (a loop on CPU, see _per_problem); the tangents see only products, which
+    # primal-only factorization (a loop on CPU: per_problem); the tangents see only products, which
     # are linear and transpose for reverse mode; the steps are qpax's solve_kkt_rhs with v2 = 0
-    p_inv, h_inv, f_inv = _per_problem(_kkt_inverses)(Qs, G, A, s_f, z_f)
+    p_inv, h_inv, f_inv = per_problem(_kkt_inverses)(Qs, G, A, s_f, z_f)
     v1 = -(dQs @ x + dq + dA.T @ y + dG.T @ z)
     v3, v4 = dh - dG @ x, db - dA @ x
     p1 = v1 + G.T @ (p_inv * v3)

@@ -19,6 +19,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from mjx_coman.wbc.batching import per_problem
 from mjx_coman.wbc.plant import N_BASE, N_CORNERS, N_FEET, N_FORCES, Plant
 
 LINEAR_XY = (0, 1)  # rows of the centroidal momentum (linear, then angular) selected by seed 004 eq. 8
@@ -106,10 +107,15 @@ def momentum_rate_task(cmm, cmm_bias, hdot_des, weight, selection: tuple[int, ..
 
 def null_space_task(task_jac, qdd_des, weight) -> Task:
     """``||(I - J^+ J)(qdd - qdd_des)||^2_W`` (seed 004 eq. 10): a privileged acceleration acting only in the
-    null space of the stacked task Jacobian ``task_jac`` (k, nv), e.g. straight-knee posture."""
+    null space of the stacked task Jacobian ``task_jac`` (k, nv), e.g. straight-knee posture.
+
+    On CPU the pseudo-inverse (an SVD) runs per problem (:func:`mjx_coman.wbc.batching.per_problem`), which
+    differentiates in forward mode only: reverse mode through ``task_jac`` raises there.
+    """
     task_jac = jnp.asarray(task_jac)
     nv = task_jac.shape[-1]
-    proj = jnp.eye(nv) - jnp.linalg.pinv(task_jac) @ task_jac
+    pinv = per_problem(lambda j: jnp.linalg.pinv(j))(task_jac)  # SVD: a loop on CPU (batched LAPACK can deadlock there)
+    proj = jnp.eye(nv, dtype=task_jac.dtype) - pinv @ task_jac
     return Task(proj, None, proj @ jnp.broadcast_to(qdd_des, (nv,)), _rows_weight(weight, nv))
 
 

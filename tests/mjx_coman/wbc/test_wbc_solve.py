@@ -229,8 +229,8 @@ def _linalg_operand_ranks(jaxpr):
 
 
 def test_batched_solves_issue_no_batched_lapack_calls_on_cpu(cases):
-    """jaxlib 0.10.2's batched CPU LAPACK kernels can deadlock the 2-thread pool (mjx_coman.wbc.solver
-    ._per_problem): under vmap, in forward and reverse mode, every factorization and solve stays unbatched."""
+    """jaxlib 0.10.2's batched CPU LAPACK kernels can deadlock the 2-thread pool (mjx_coman.wbc.batching
+    .per_problem): under vmap, in forward and reverse mode, every factorization and solve stays unbatched."""
     assert jax.default_backend() == "cpu"
     args = _inputs(cases)
     forward = jax.make_jaxpr(jax.vmap(lambda *r: _one(*r, fixed=False)[1].tau))(*args)
