@@ -11,10 +11,11 @@ solved with qpax's own KKT factorization (``factorize_kkt``, that of its Newton 
 inverses so that the tangents meet only products) and the steps of its ``solve_kkt_rhs``, with ``s, z``
 floored at eps^(3/4) (qpax's sqrt(eps) floor gave derivatives off by up to 3e-5 relative against central
 differences; eps^(3/4): 1e-7). A JVP rule gives forward mode (which this project's walks use) and, being
-linear in the tangents, reverse mode by transposition, with one solve and no second call for the
-diagnostics (``qpax.solve_qp_primal`` returns only ``x``; its ``custom_vjp`` runs ``solve_qp`` and then ``relax_qp`` to a KKT point relaxed by ``target_kappa = 1e-3`` and differentiates
-that smoothed problem). Here the derivative is the exact one of the solution where the active set does
-not change; it is zeroed where the solve was not finite.
+linear in the tangents, reverse mode by transposition, with one solve and no second call for the diagnostics
+(``qpax.solve_qp_primal`` returns only ``x``; its ``custom_vjp`` runs ``solve_qp`` and then ``relax_qp`` to a
+KKT point relaxed by ``target_kappa = 1e-3`` and differentiates that smoothed problem). Here the derivative is
+the exact one of the solution where the active set does not change; it is zeroed where the solve was not
+finite.
 
 Precision. The simulator runs float32, and so can the QP: on standing QPs (double and single support,
 binding torque and friction rows) qpax's float32 iterates agree with proxsuite's float64 solution to
