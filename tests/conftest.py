@@ -2,7 +2,8 @@
 
 Under pytest-xdist (``-n 2 --dist loadgroup``, the README's test command) each test module is one group, so
 its module-scoped fixtures are built once; modules that share a session-scoped compilation share a group:
-the shared walk of every controller (``tests/mjx_coman/conftest.py``), and the subprocesses that share JAX's
+the shared walk of every position-controlled controller (``tests/mjx_coman/conftest.py``; the torque-controlled
+ones share another), and the subprocesses that share JAX's
 persistent compilation cache (the walk command line and notebook 03).
 """
 
@@ -24,4 +25,15 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("xdist_group") is None:
             name = item.path.name
-            item.add_marker(pytest.mark.xdist_group(group_of.get(name, str(item.path.relative_to(config.rootpath)))))
+            group = group_of.get(name, str(item.path.relative_to(config.rootpath)))
+            if group == "walks" and _torque_controlled(getattr(getattr(item, "callspec", None), "params", {}).get("name")):
+                group = "torque-walks"  # the torque-controlled families' batch compiles apart: another worker
+            item.add_marker(pytest.mark.xdist_group(group))
+
+
+def _torque_controlled(name) -> bool:
+    if not isinstance(name, str):
+        return False
+    from mjx_coman import controllers
+
+    return name in controllers.names() and controllers.get(name).gait(controllers.default_config(name)).plant != "position"

@@ -182,3 +182,7 @@ register("dlqr", _TP, "seed 000's baseline: the DLQR adjustment of the phase sta
          hold_adjustment=1.0)
 register("joint-pd", "mjx_coman.controllers.joint_pd", "example: stands still by joint-space PD on the motor encoders",
          walking=False)
+register("wbc-stand", "mjx_coman.controllers.wbc_stand", "stands by the whole-body QP on the ideal-torque robot",
+         walking=False)
+register("wbc-stand-sea", "mjx_coman.controllers.wbc_stand", "wbc-stand through the series-elastic torque loop",
+         walking=False, plant="torque-sea")

@@ -46,9 +46,12 @@ from mjx_coman.wbc.tasks import Task
 # per solving dtype: qpax's iteration cap (its floored flag rarely trips, see solve_qp) and KKT tolerance
 # (scaled rows, relative stationarity and max_i min(s_i, z_i)); then the largest equality residual and
 # inequality violation of an accepted solve in physical units (N, N m, m/s^2). Measured on standing QPs:
-# the KKT measure falls below 1e-9 in <= 10 iterations in float64, to ~2e-5 in ~8 in float32.
+# the KKT measure falls below 1e-9 in <= 10 iterations in float64, to ~2e-5 in ~8 in float32. In a
+# wbc-stand-sea walk float32 stalls at 2.5e-3 to 1.3e-2 on some ticks (12 or 25 iterations alike) while
+# the iterate is feasible to 2e-5 N: float32 accepts a KKT measure up to 5e-2 (a feasible point within a
+# few percent of stationarity, complementarity below 0.5 N m / 5 N); feasibility keeps its tolerances.
 TOLERANCES = {"float64": dict(max_iter=15, kkt=1e-8, eq=1e-6, ineq=1e-6),
-              "float32": dict(max_iter=12, kkt=1e-4, eq=1e-3, ineq=1e-3)}
+              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-3, ineq=1e-3)}
 QPAX_TOL = 1e-12  # below qpax's floor: its flag is not the stopping test (solve_qp)
 
 

@@ -44,6 +44,8 @@ def stand_run(env_params, reset_state, standing_q):
 
 WALK_S = 2.4  # a start-up phase and five steps of the time-projection gait
 WALK_ROWS = 16
+TORQUE_WALK_ROWS = 4  # the gradient check's three rows and the series-elastic variant, unpushed
+TORQUE_WALK_S = 1.0  # a QP a tick (with its tangent): the torque batch walks shorter
 GRAD_WINDOW_S = 0.3  # the cost of the gradient check: the controller's own start, before any step
 PUSH_START_S = (1 + 1 + 0.375) * 0.4  # walking step 1 of the time-projection gait, 3/8 through
 RECORD_EVERY = 10
@@ -74,8 +76,16 @@ def grad_cost(saved):
     return saved["com_m"][:, :n, :2].sum(-1).mean(-1)
 
 
-def _families():
-    """``[(representative name, [its variant names])]`` of the registry, one per family."""
+def torque_controlled(name) -> bool:
+    """The controller commands torques (its plant is a torque plant): it runs in the torque batch."""
+    from mjx_coman import controllers
+
+    ctrl = controllers.get(name)
+    return ctrl.gait(controllers.default_config(name)).plant != "position"
+
+
+def _families(torque: bool = False):
+    """``[(representative name, [its variant names])]`` of the registry, one per family, of one batch."""
     from mjx_coman import controllers
 
     out = []
@@ -87,24 +97,24 @@ def _families():
                 break
         else:
             out.append((n, [n]))
-    return out
+    return [(rep, ms) for rep, ms in out if torque_controlled(rep) == torque]
 
 
-def _rows(walking_env):
+def _rows(fams, pushed: bool = True):
     """Per family: the probe, its step h, and rows ``(name, push, seed, delta)``; all rows in one list."""
     from mjx_coman import controllers, rollout as ro
 
     back = ro.make_push(PUSH_START_S, 0.1, impulse_ns=5.0, direction_rad=np.pi)
     absurd = ro.make_push(1.0, 0.05, force_n=[3e6, 0.0, 1e6])
     rows, probes = [], {}
-    for rep, members in _families():
+    for rep, members in fams:
         probe = probe_setting(controllers.get(rep))
         h = 0.05 * abs(float(controllers.get(rep).defaults()[probe]))
         probes[rep] = (probe, h)
-        rows += [(rep, None, 0, 0.0), (rep, None, 0, h), (rep, None, 0, -h), (rep, back, 7, 0.0), (rep, absurd, 7, 0.0)]
+        rows += [(rep, None, 0, 0.0), (rep, None, 0, h), (rep, None, 0, -h)]
+        rows += [(rep, back, 7, 0.0), (rep, absurd, 7, 0.0)] if pushed else []
         rows += [(m, None, 1, 0.0) for m in members[1:]]
         rows += [(m, back, 7, 0.0) for m in members[1:] if m == "open-loop"]  # the push it cannot take
-    assert len(rows) <= WALK_ROWS, len(rows)
     return rows, probes
 
 
@@ -115,18 +125,21 @@ def walking_env():
     return walking_env_params()
 
 
-@pytest.fixture(scope="session")
-def shared_walks(walking_env):
-    """``(rows, results, cost, dcost, probes)`` of the one bundled batch (compiled and run once)."""
-    from mjx_coman import controllers, rollout as ro
+def _batch(fams, n_rows, seconds, shared_env=None, pushed=True):
+    """``(rows, results, cost, dcost, probes)`` of one bundled batch (compiled and run once).
+
+    ``shared_env``: every row's environment; ``None``: each row gets its controller's plant
+    (:func:`mjx_coman.rollout.plant_env_params`), vmapped over the rows.
+    """
+    from mjx_coman import controllers, env as env_mod, rollout as ro
     from mjx_coman.controllers.bundle import bundle, bundle_config
 
-    fams = _families()
     reps = [rep for rep, _ in fams]
     member_of = {m: i for i, (_, ms) in enumerate(fams) for m in ms}
-    both = bundle([controllers.get(r) for r in reps])
-    rows, probes = _rows(walking_env)
-    rows = rows + [rows[0]] * (WALK_ROWS - len(rows))  # one batch size
+    both = bundle([controllers.get(r) for r in reps]) if len(reps) > 1 else None
+    rows, probes = _rows(fams, pushed)
+    assert len(rows) <= n_rows, len(rows)
+    rows = rows + [rows[0]] * (n_rows - len(rows))  # one batch size
     defaults = [controllers.default_config(r) for r in reps]
     configs, tangents = [], []
     for name, _, _, delta in rows:
@@ -135,6 +148,14 @@ def shared_walks(walking_env):
         own = controllers.default_config(name)
         if delta:
             own = own.replace(**{probe: getattr(own, probe) + delta})
+        if both is None:
+            if jax.tree_util.tree_structure(own) != jax.tree_util.tree_structure(defaults[i]):
+                # a variant on another plant: the plant is its row's environment, the static field only names it
+                own = own.replace(plant=defaults[i].plant)
+            configs.append(own)
+            zero = jax.tree_util.tree_map(np.zeros_like, own)
+            tangents.append(zero.replace(**{probe: np.ones_like(getattr(zero, probe))}))
+            continue
         cfgs = [own if j == i else defaults[j] for j in range(len(reps))]
         configs.append(bundle_config(i, cfgs))
         zero = jax.tree_util.tree_map(np.zeros_like, bundle_config(i, cfgs))
@@ -143,16 +164,40 @@ def shared_walks(walking_env):
     stack = lambda xs: jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(x) for x in a]), *xs)  # noqa: E731
     pushes = stack([p if p is not None else ro.no_push() for _, p, _, _ in rows])
     keys = np.stack([np.asarray(jax.random.PRNGKey(s)) for _, _, s, _ in rows])
-    spec, save, joy = ro.WalkSpec(seconds=WALK_S), ro.SaveAt(walk_record, every=RECORD_EVERY), controllers.joystick()
+    spec, save, joy = ro.WalkSpec(seconds=seconds), ro.SaveAt(walk_record, every=RECORD_EVERY), controllers.joystick()
+    core = (both or controllers.get(reps[0])).core()
+    if shared_env is not None:
+        envs, env_axes = shared_env, None
+    else:
+        plant = lambda n: controllers.get(n).gait(controllers.default_config(n)).plant  # noqa: E731
+        envs = stack([ro.plant_env_params(plant(n)).actuator for n, _, _, _ in rows])
+        base = ro.plant_env_params(plant(rows[0][0]))
+        envs = base.__class__(model=base.model, actuator=envs, sensor=jax.tree_util.tree_map(
+            lambda x: np.stack([np.asarray(x)] * n_rows), base.sensor), n_substeps=base.n_substeps)
+        env_axes = env_mod.batch_axes(envs)
 
     def batch(cfg):
-        r = jax.vmap(lambda c, p, k: ro.walk(both.core(), c, walking_env, p, k, spec, joy, save))(cfg, pushes, keys)
+        r = jax.vmap(lambda c, e, p, k: ro.walk(core, c, e, p, k, spec, joy, save),
+                     in_axes=(0, env_axes, 0, 0))(cfg, envs, pushes, keys)
         return r, grad_cost(r.saved)
 
     tangent = stack(tangents)
-    tangent = tangent.replace(index=np.zeros(WALK_ROWS, jax.dtypes.float0))
+    if both is not None:
+        tangent = tangent.replace(index=np.zeros(n_rows, jax.dtypes.float0))
     (res, cost), (_, dcost) = jax.jit(lambda c, t: jax.jvp(batch, (c,), (t,)))(stack(configs), tangent)
     return rows, jax.tree_util.tree_map(np.asarray, res), np.asarray(cost), np.asarray(dcost), probes
+
+
+@pytest.fixture(scope="session")
+def shared_walks(walking_env):
+    """The batch of every position-controlled family (one compilation)."""
+    return _batch(_families(), WALK_ROWS, WALK_S, walking_env)
+
+
+@pytest.fixture(scope="session")
+def torque_walks():
+    """The batch of every torque-controlled family, each row on its own plant (one compilation)."""
+    return _batch(_families(torque=True), TORQUE_WALK_ROWS, TORQUE_WALK_S, pushed=False)
 
 
 class FamilyBatch(NamedTuple):
@@ -170,13 +215,13 @@ class FamilyBatch(NamedTuple):
 
 
 @pytest.fixture(scope="session")
-def family_walks(shared_walks):
-    """``family_walks(name) -> FamilyBatch`` of the shared batch, for ``name``'s family."""
+def family_walks(request):
+    """``family_walks(name) -> FamilyBatch`` of the shared batch (position or torque) of ``name``'s family."""
     from mjx_coman import controllers
 
-    rows, res, cost, dcost, probes = shared_walks
-
     def get(name):
+        rows, res, cost, dcost, probes = request.getfixturevalue(
+            "torque_walks" if torque_controlled(name) else "shared_walks")
         core = controllers.get(name).core()
         member, rep = next((j, r) for j, r in enumerate(probes) if controllers.get(r).core() == core)
         i0 = next(i for i, (n, p, _, d) in enumerate(rows) if n == rep and p is None and d == 0.0)
