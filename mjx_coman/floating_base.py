@@ -69,18 +69,14 @@ def estimate(readings, anchor_m: jax.Array, stance: jax.Array) -> BaseState:
         anchor_m: (2, 3) world positions of the (right, left) sole sites when in stance.
         stance: (2,) weights of the feet taken as still (e.g. ``[1, 1]`` standing); not both zero.
 
-    Joint angles are the link encoders' (their derivative with respect to
-    anything upstream is taken through the motor encoders, exact at rigid
-    joints); joint rates are the motor encoders' rates (the link's at rigid
-    joints; at series-elastic joints they differ by the spring's deflection rate).
+    Joint angles are the link encoders'; joint rates are the motor encoders'
+    rates (the link's at rigid joints; at series-elastic joints they differ
+    by the spring's deflection rate).
     """
     model, blank = nominal_model()
     f = blank.qpos.dtype
     quat = readings.imu_quat.astype(f)
-    # Values of the link encoders; derivatives through the motor encoders (a quantised reading has zero
-    # derivative, which would cut the joint-angle feedback out of every gradient through a rollout).
-    motor = readings.motor_angle_rad.astype(f)
-    q = motor + jax.lax.stop_gradient(readings.link_angle_rad.astype(f) - motor)
+    q = readings.link_angle_rad.astype(f)
     qvel0 = jnp.concatenate([jnp.zeros(3, f), readings.gyro_rad_per_s.astype(f), readings.motor_vel_rad_per_s.astype(f)])
     d0 = dynamics.prepare(model, blank.replace(qpos=jnp.concatenate([jnp.zeros(3, f), quat, q]), qvel=qvel0))
     ids = sole_site_ids()

@@ -162,8 +162,12 @@ def init_sensor_state(q_rad: jax.Array) -> SensorState:
 
 
 def quantize(x: jax.Array, resolution: jax.Array) -> jax.Array:
-    """Round to the encoder quantum: ``round(x / r) * r``."""
-    return jnp.round(x / resolution) * resolution
+    """Round to the encoder quantum: ``round(x / r) * r``, with the derivative of ``x`` (straight through).
+
+    A rounded reading has zero derivative almost everywhere, which would cut every feedback through the
+    encoders out of a gradient through a rollout; its slope on average (over the quantum) is 1.
+    """
+    return x + jax.lax.stop_gradient(jnp.round(x / resolution) * resolution - x)
 
 
 def backlash(prev_output: jax.Array, x: jax.Array, width: jax.Array) -> jax.Array:
