@@ -2,8 +2,10 @@
 
 Nothing here reads a controller's state or estimate. From ``mjx.Data``:
 
-* **Fall**: the pelvis lower than ``fall_height_m`` above the floor, tilted
-  more than ``max_tilt_rad`` from upright, or a non-finite state.
+* **Fall**: the pelvis lower than ``fall_height_m`` above the ground under
+  it (the floor, or the judge's ``terrain``: :func:`mjx_coman.scenarios.terrain_height_m`),
+  tilted more than ``max_tilt_rad`` from gravity's vertical (the world z
+  axis, or a scene variant's gravity frame on a slope), or a non-finite state.
 * **Contact**: a foot is loaded when its true normal force (MJX's solved
   contact forces, :func:`mjx_coman.sensors.foot_wrenches`) exceeds
   ``contact_n``. A **touchdown** is a foot becoming loaded after at least
@@ -44,7 +46,8 @@ import mujoco
 
 from mjx_coman import load_model
 from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, quat_to_rot
-from mjx_coman.sensors import foot_wrenches, model_ids
+from mjx_coman.scenarios.terrain import parse_terrain, terrain_height_m
+from mjx_coman.sensors import foot_wrenches, gravity_frame_quat, model_ids
 
 LEFT, RIGHT = 0, 1
 
@@ -60,6 +63,8 @@ class Judge(NamedTuple):
         recover_tol_mps: largest step-velocity difference from the cycle that counts as recovered, m/s.
         cycle_steps: last steps of the walk averaged into its cycle.
         confirm_steps: steps in a row within the tolerance needed to call a walk recovered (the cycle's included).
+        terrain: the ground the height is measured from (``flat``, ``rough:CM[:SEED]``, ``stairs:CM``:
+            :func:`mjx_coman.scenarios.scenario_judge` sets the scene's).
     """
 
     fall_height_m: float = 0.3
@@ -69,6 +74,7 @@ class Judge(NamedTuple):
     recover_tol_mps: float = 0.05
     cycle_steps: int = 2
     confirm_steps: int = 4
+    terrain: str = "flat"
 
     def validate(self) -> "Judge":
         for name in ("fall_height_m", "max_tilt_rad", "contact_n", "min_air_s", "recover_tol_mps"):
@@ -79,6 +85,8 @@ class Judge(NamedTuple):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < 1:
                 raise ValueError(f"{name}={v!r} must be a positive whole number")
+        if parse_terrain(self.terrain).text != self.terrain:
+            raise ValueError(f"terrain={self.terrain!r} must be written {parse_terrain(self.terrain).text!r}")
         return self
 
     def max_touchdowns(self, seconds: float) -> int:
@@ -164,14 +172,22 @@ def pelvis_yaw_rad(data) -> jax.Array:
 
 
 def tilt_rad(data) -> jax.Array:
-    """Angle between the pelvis z axis and the vertical."""
+    """Angle between the pelvis z axis and the vertical (against gravity: a scene variant's gravity frame z)."""
     rot = quat_to_rot(data.xquat[model_ids()["pelvis_body"]])
-    return jnp.arccos(jnp.clip(rot[2, 2], -1.0, 1.0))
+    g = gravity_frame_quat(data)
+    cos = rot[2, 2] if g is None else jnp.dot(rot[:, 2], quat_to_rot(g)[:, 2])
+    return jnp.arccos(jnp.clip(cos, -1.0, 1.0))
+
+
+def pelvis_height_m(data, judge: Judge) -> jax.Array:
+    """Pelvis height above the ground under it (the judge's terrain), m."""
+    p = pelvis_m(data)
+    return p[2] - terrain_height_m(judge.terrain, p[0], p[1])
 
 
 def fallen(data, judge: Judge) -> jax.Array:
     """The pelvis is too low or too tilted (non-finite states are the rollout's to catch)."""
-    return (pelvis_m(data)[2] < judge.fall_height_m) | (tilt_rad(data) > judge.max_tilt_rad)
+    return (pelvis_height_m(data, judge) < judge.fall_height_m) | (tilt_rad(data) > judge.max_tilt_rad)
 
 
 def foot_loads_n(data) -> jax.Array:

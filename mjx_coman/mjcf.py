@@ -18,6 +18,9 @@ reflected rotor inertia) are simulated outside MuJoCo by
 :mod:`mjx_coman.actuators`, except that joints without a series spring get the
 reflected rotor inertia as armature (the motor is rigidly coupled there).
 
+:func:`scene_xml` also writes the scene variants of :mod:`mjx_coman.scenarios`
+(terrain, a gravity frame), whose extra bodies and geoms follow the robot's.
+
 Run ``python -m mjx_coman.mjcf`` to regenerate the assets.
 """
 
@@ -259,24 +262,68 @@ def build_xml(links_csv: Path | None = None, joints_csv: Path | None = None) -> 
     w.add(1, "</actuator>")
     w.add(1, "</mujoco>")
     coman = "\n".join(w.lines) + "\n"
+    return coman, scene_xml()
 
+
+def foot_contact_geoms() -> tuple[str, ...]:
+    """Names of the eight sole-corner contact spheres, right foot first (the order of the floor pairs)."""
+    return tuple(f"{side}_foot_{name}_contact" for side in ("r", "l") for name in FOOT_CORNERS)
+
+
+GRAVITY_FRAME_BODY = "gravity_frame"  # scene variants: the first body after the robot (see scene_xml)
+TERRAIN_BODY = "terrain"
+
+
+def scene_xml(include: str = "coman.xml", *, floor_contacts: bool = True, floor_z_m: float = 0.0,
+              gravity_frame: bool = False, terrain_geoms: tuple[str, ...] = (), contact_geoms: tuple[str, ...] = (),
+              assets: tuple[str, ...] = ()) -> str:
+    """The scene MJCF: floor, light, the robot and its foot contacts; with no arguments the packaged ``scene.xml``.
+
+    Scene variants (:mod:`mjx_coman.scenarios`) add, after the robot so that its body, geom and site ids
+    stay those of the packaged model:
+
+    * ``gravity_frame``: a massless static body :data:`GRAVITY_FRAME_BODY` whose orientation the scenario
+      sets to the gravity-aligned frame (z against gravity), read by the sensors and the ground truth;
+    * ``terrain_geoms``: geom elements (MJCF text) in a static body :data:`TERRAIN_BODY`, and an explicit
+      ``<pair>`` between each of the ``contact_geoms`` (their names) and each foot sphere;
+    * ``assets``: asset elements (e.g. an ``<hfield>``).
+
+    Args:
+        include: the robot file the scene includes (a path relative to the scene, or absolute).
+        floor_contacts: pair the floor plane with the foot spheres (off when a terrain replaces it).
+        floor_z_m: height of the floor plane.
+    """
+    if terrain_geoms and not gravity_frame:
+        raise ValueError("terrain_geoms need gravity_frame=True (the terrain body follows the gravity frame)")
     s = _Writer()
     s.add(0, '<mujoco model="coman_scene">')
-    s.add(1, '<include file="coman.xml"/>')
+    s.add(1, f'<include file="{include}"/>')
     s.add(1, '<statistic center="0 0 0.5" extent="1.2"/>')
     s.add(1, '<visual><headlight diffuse="0.6 0.6 0.6" ambient="0.3 0.3 0.3"/></visual>')
+    if assets:
+        s.add(1, "<asset>")
+        for a in assets:
+            s.add(2, a)
+        s.add(1, "</asset>")
     s.add(1, "<worldbody>")
     s.add(2, '<light name="sun" pos="0 0 3" dir="0 0 -1" directional="true"/>')
-    s.add(2, '<geom name="floor" type="plane" size="0 0 0.05" contype="0" conaffinity="0" rgba="0.8 0.8 0.8 1"/>')
+    pos = f' pos="0 0 {_fmt(floor_z_m)}"' if floor_z_m else ""
+    s.add(2, f'<geom name="floor" type="plane" size="0 0 0.05"{pos} contype="0" conaffinity="0" rgba="0.8 0.8 0.8 1"/>')
+    if gravity_frame:
+        s.add(2, f'<body name="{GRAVITY_FRAME_BODY}"/>')
+    if terrain_geoms:
+        s.add(2, f'<body name="{TERRAIN_BODY}">')
+        for g in terrain_geoms:
+            s.add(3, g)
+        s.add(2, "</body>")
     s.add(1, "</worldbody>")
     s.add(1, "<contact>")
-    for side in ("r", "l"):
-        for name in FOOT_CORNERS:
-            s.add(2, f'<pair geom1="floor" geom2="{side}_foot_{name}_contact" condim="3" friction="1 1 0.005 0.0001 0.0001"/>')
+    for geom in (("floor",) if floor_contacts else ()) + tuple(contact_geoms):
+        for foot in foot_contact_geoms():
+            s.add(2, f'<pair geom1="{geom}" geom2="{foot}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>')
     s.add(1, "</contact>")
     s.add(1, "</mujoco>")
-    scene = "\n".join(s.lines) + "\n"
-    return coman, scene
+    return "\n".join(s.lines) + "\n"
 
 
 def write_assets(out_dir: Path | None = None) -> tuple[Path, Path]:

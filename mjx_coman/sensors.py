@@ -9,6 +9,11 @@ their foot (from the solved contact forces), expressed in the sensor frame.
 
 Noise is Gaussian and drawn from explicit PRNG keys passed in by the caller
 and split here. All constants live in :class:`SensorParams` (vmappable).
+
+The IMU measures relative to gravity, as a real one does: in a scene whose
+gravity a scenario rotates (a slope, :mod:`mjx_coman.scenarios`), the
+orientation is expressed in the gravity-aligned frame, so a robot standing on
+the slope reads the tilt; the gyro measures in the pelvis frame either way.
 """
 
 from __future__ import annotations
@@ -29,11 +34,12 @@ EFC_ROWS_PER_CONTACT = 4  # condim 3, pyramidal cone
 
 
 @functools.lru_cache(maxsize=1)
-def model_ids() -> dict[str, int]:
-    """Static MuJoCo ids used by the sensors and the environment.
+def model_ids() -> dict:
+    """Static MuJoCo ids used by the sensors and the environment (ints; the foot sphere geoms as tuples).
 
     Taken from the packaged model; a custom ``MjModel`` passed to
-    ``make_env_params`` must keep the same bodies and sites in the same order.
+    ``make_env_params`` must keep the same bodies, geoms and sites in the same
+    order (the scene variants of :func:`mjx_coman.mjcf.scene_xml` add theirs after the robot's).
     """
     from mjx_coman import load_model
 
@@ -45,7 +51,15 @@ def model_ids() -> dict[str, int]:
     def body(n):
         return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
 
+    def geom(n):
+        return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
+
+    from mjx_coman.mjcf import FOOT_CORNERS
+
     return dict(
+        n_robot_bodies=m.nbody,  # a scene variant's gravity frame is body n_robot_bodies (mjx_coman.mjcf.scene_xml)
+        r_foot_geoms=tuple(geom(f"r_foot_{c}_contact") for c in FOOT_CORNERS),
+        l_foot_geoms=tuple(geom(f"l_foot_{c}_contact") for c in FOOT_CORNERS),
         pelvis_body=body("Waist"),
         torso_body=body("DWYTorso"),
         r_ft_site=site("r_ft"),
@@ -66,7 +80,9 @@ class SensorParams:
         encoder_resolution_rad: link encoder quantum (2 pi / 4096 for 12 bits).
         encoder_offset_rad: constant link encoder offsets, (NU,).
         backlash_rad: dead-band width of the link reading, (NU,).
-        imu_orientation_noise_rad: std of the IMU orientation error (rotation vector).
+        imu_orientation_noise_rad: std of the IMU orientation error (rotation vector, each axis).
+        joint_noise_rad: std of white Gaussian noise on the link encoder readings (seed 001, experiments:
+            1 deg); the motor encoders stay exact.
         gyro_noise_rad_per_s: std of the angular-rate noise.
         ft_force_noise_n, ft_torque_noise_nm: std of the F/T noise.
         contact_threshold_n: normal force above which a foot is in contact.
@@ -80,6 +96,7 @@ class SensorParams:
     ft_force_noise_n: jax.Array
     ft_torque_noise_nm: jax.Array
     contact_threshold_n: jax.Array
+    joint_noise_rad: jax.Array
 
 
 def make_sensor_params(
@@ -92,6 +109,7 @@ def make_sensor_params(
     ft_force_noise_n: float = 0.5,
     ft_torque_noise_nm: float = 0.05,
     contact_threshold_n: float = 20.0,
+    joint_noise_rad: float = 0.0,
 ) -> SensorParams:
     """Build validated sensor parameters.
 
@@ -106,7 +124,8 @@ def make_sensor_params(
         raise ValueError(f"encoder_offset_rad must be finite, got {off.tolist()}")
     for name, v in [("backlash_rad", backlash_rad), ("imu_orientation_noise_rad", imu_orientation_noise_rad),
                     ("gyro_noise_rad_per_s", gyro_noise_rad_per_s), ("ft_force_noise_n", ft_force_noise_n),
-                    ("ft_torque_noise_nm", ft_torque_noise_nm), ("contact_threshold_n", contact_threshold_n)]:
+                    ("ft_torque_noise_nm", ft_torque_noise_nm), ("contact_threshold_n", contact_threshold_n),
+                    ("joint_noise_rad", joint_noise_rad)]:
         arr = np.asarray(v, float)
         if not np.all(np.isfinite(arr)) or np.any(arr < 0):
             raise ValueError(f"{name} must be finite and non-negative, got {arr.tolist()}")
@@ -120,6 +139,7 @@ def make_sensor_params(
         ft_force_noise_n=jnp.asarray(ft_force_noise_n, f32),
         ft_torque_noise_nm=jnp.asarray(ft_torque_noise_nm, f32),
         contact_threshold_n=jnp.asarray(contact_threshold_n, f32),
+        joint_noise_rad=jnp.asarray(joint_noise_rad, f32),
     )
 
 
@@ -136,7 +156,8 @@ class Readings(NamedTuple):
         link_angle_rad: quantised link encoders, (NU,).
         motor_angle_rad: motor encoders (precise), (NU,).
         motor_vel_rad_per_s: motor velocities, (NU,).
-        imu_quat: pelvis orientation quaternion (w, x, y, z), world frame, (4,).
+        imu_quat: pelvis orientation quaternion (w, x, y, z) in the gravity-aligned frame (the world frame
+            unless a scenario rotates gravity: :func:`gravity_frame_quat`), (4,).
         imu_rpy_rad: roll, pitch, yaw of the pelvis, (3,).
         gyro_rad_per_s: pelvis angular rate in the pelvis frame, (3,).
         ft_right, ft_left: ankle F/T (fx, fy, fz, mx, my, mz) in the sensor frame, (6,).
@@ -203,11 +224,13 @@ def _small_rotation_quat(rotvec: jax.Array) -> jax.Array:
 
 
 def contact_wrenches_world(data) -> tuple[jax.Array, jax.Array]:
-    """World-frame force on the robot and position of each of the 8 foot contacts.
+    """World-frame force and position of each contact of ``data`` (8 foot contacts on the packaged floor).
 
     Decodes the pyramidal-cone constraint forces (normal = sum of the four
     edge forces, tangent_i = (f_2i - f_2i+1) mu_i) and rotates them out of the
-    contact frame (normal from the floor to the foot).
+    contact frame. The force is the one on the contact's ``geom2`` (the frame's
+    normal points from ``geom1`` to ``geom2``): on the packaged floor, whose
+    plane is every pair's ``geom1``, the force on the robot.
     """
     c = data._impl.contact
     rows = c.efc_address[:, None] + jnp.arange(EFC_ROWS_PER_CONTACT)[None, :]
@@ -220,26 +243,76 @@ def contact_wrenches_world(data) -> tuple[jax.Array, jax.Array]:
     return world, c.pos
 
 
+def contact_signs(data, geoms) -> jax.Array:
+    """(ncon,) sign of each contact's force (:func:`contact_wrenches_world`) on the geoms ``geoms`` (ids):
+    +1 where one is the contact's ``geom2``, -1 where one is its ``geom1`` (MJX orders a pair by geom type,
+    so a sphere comes before a box), 0 for other contacts."""
+    c = data._impl.contact
+    g = jnp.asarray(tuple(geoms))
+    on2 = jnp.any(c.geom2[:, None] == g[None, :], axis=1)
+    on1 = jnp.any(c.geom1[:, None] == g[None, :], axis=1)
+    return on2.astype(data.qpos.dtype) - on1.astype(data.qpos.dtype)
+
+
+def foot_contact_weights(data) -> jax.Array:
+    """(2, ncon) :func:`contact_signs` of the (right, left) foot spheres."""
+    ids = model_ids()
+    return jnp.stack([contact_signs(data, ids["r_foot_geoms"]), contact_signs(data, ids["l_foot_geoms"])])
+
+
 def foot_wrenches(data) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Ground reaction wrench of each foot at its F/T site, in the sensor frame.
 
+    The packaged scene's eight contacts (right foot first) are summed four by
+    four; a scene variant's contacts (terrain pairs: any number, in MJX's
+    order) are assigned to the feet by their geoms (:func:`foot_contact_weights`).
+
     Returns:
         ``(ft_right, ft_left, normal_force_n)``: two (6,) wrenches
-        (force, torque about the F/T site) and the (2,) total normal forces.
+        (force, torque about the F/T site) and the (2,) world-z (upward) components of the foot forces.
     """
     ids = model_ids()
     force, pos = contact_wrenches_world(data)
+    weights = foot_contact_weights(data) if force.shape[0] != N_CONTACTS else None
     out = []
     normals = []
     for k, site in enumerate((ids["r_ft_site"], ids["l_ft_site"])):
-        sl = slice(4 * k, 4 * k + 4)
         p0 = data.site_xpos[site]
         rot = data.site_xmat[site].reshape(3, 3)
-        f_w = force[sl].sum(0)
-        m_w = jnp.cross(pos[sl] - p0, force[sl]).sum(0)
+        if weights is None:
+            sl = slice(4 * k, 4 * k + 4)
+            f_w = force[sl].sum(0)
+            m_w = jnp.cross(pos[sl] - p0, force[sl]).sum(0)
+        else:
+            fk = weights[k][:, None] * force
+            f_w = fk.sum(0)
+            m_w = jnp.cross(pos - p0, fk).sum(0)
         out.append(jnp.concatenate([rot.T @ f_w, rot.T @ m_w]))
         normals.append(f_w[2])
     return out[0], out[1], jnp.stack(normals)
+
+
+def quat_conj(q: jax.Array) -> jax.Array:
+    """Conjugate (inverse rotation) of a (w, x, y, z) unit quaternion."""
+    return q * jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype)
+
+
+def gravity_frame_quat(data) -> jax.Array | None:
+    """World-to-gravity-frame rotation of a scene variant as a quaternion (the orientation of its gravity
+    frame body, z against gravity), or ``None`` for a scene without one (gravity along -z: the packaged one).
+
+    Static: decided by the number of bodies (:func:`mjx_coman.mjcf.scene_xml` puts that body right after
+    the robot's).
+    """
+    n = model_ids()["n_robot_bodies"]
+    return data.xquat[n] if data.xquat.shape[0] > n else None
+
+
+def pelvis_quat_gravity(data) -> jax.Array:
+    """True pelvis orientation in the gravity-aligned frame: ``conj(q_gravity) q_pelvis`` (world frame if none)."""
+    q = data.xquat[model_ids()["pelvis_body"]]
+    g = gravity_frame_quat(data)
+    return q if g is None else quat_mul(quat_conj(g), q)
 
 
 def read_sensors(
@@ -262,13 +335,15 @@ def read_sensors(
     Returns:
         the new sensor state and the readings.
     """
-    ids = model_ids()
     k_imu, k_gyro, k_ft = jax.random.split(key, 3)
     q = data.qpos[7:]
     out = backlash(state.backlash_output_rad, q, params.backlash_rad)
     link = quantize(out + params.encoder_offset_rad, params.encoder_resolution_rad)
+    # Its own stream (fold_in), so that the IMU, gyro and F/T draws stay those of a walk without it.
+    k_joint = jax.random.fold_in(key, 3)
+    link = link + params.joint_noise_rad * jax.random.normal(k_joint, link.shape, link.dtype)
 
-    quat_true = data.xquat[ids["pelvis_body"]]
+    quat_true = pelvis_quat_gravity(data)
     noise = params.imu_orientation_noise_rad * jax.random.normal(k_imu, (3,), quat_true.dtype)
     quat = quat_mul(quat_true, _small_rotation_quat(noise))
     quat = quat / jnp.linalg.norm(quat)

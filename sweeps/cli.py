@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
 
+from sweeps import scenario_args
 from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
 from sweeps.presets import PRESETS
 
@@ -142,6 +143,7 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
     a("--seed", type=int, help="PRNG seed (default 0)")
     a("--chunk", type=_number("--chunk", int, 0, True), help="rollouts per jitted call (default 256)")
     a("--x64", action="store_true", default=None, help="simulate in 64-bit floats")
+    scenario_args.add_arguments(p)
 
 
 def _run_options(p: argparse.ArgumentParser) -> None:
@@ -227,7 +229,7 @@ def _controller_overrides(args, model: str, controller: str) -> dict:
 def _given(args) -> bool:
     """Whether any grid or controller option was given."""
     opts = (*_FIELDS, *_MODEL_FIELDS, "x64", "controller", "controllers", "constants", "set")
-    return any(getattr(args, o, None) is not None for o in opts)
+    return any(getattr(args, o, None) is not None for o in opts) or scenario_args.given(args)
 
 
 def _config(fields: dict, args, controller: str) -> SweepConfig:
@@ -244,6 +246,9 @@ def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
     out = Path(args.out)
     preset = getattr(args, "preset", None)
     if args.command == "map" and (preset or not _given(args)):
+        if scenario_args.given(args):
+            raise GridError("scenario options (--axis, --payload-kg, ...) apply to an explicit --model mjx grid, "
+                            "not to --preset")
         runs = PRESETS[preset or "default"]
         plans = []
         for run in runs:
@@ -260,14 +265,16 @@ def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
     model = args.model or "3lp"
     m = get_model(model)  # GridError listing the models
     base = dict(_overrides(args, model, strict=True), model=model)
+    runs = scenario_args.variants(args)  # one per terrain: a scene (and a compilation) each
     if args.command == "map":
-        return [(out, _config(base, args, args.controller or "time-projection"), False, "")]
+        return [(out / sub, _config(dict(base, scenario=sc), args, args.controller or "time-projection"), False, "")
+                for sub, sc in runs]
     ctrls = args.controllers or m.compare_default()
     known = m.controllers()
     bad = [c for c in ctrls if c not in known]
     if bad:
         raise GridError(f"unknown controller {bad[0]!r} for model {model}; choose from {', '.join(known)}")
-    return [(out / c, _config(base, args, c), False, "") for c in ctrls]
+    return [(out / sub / c, _config(dict(base, scenario=sc), args, c), False, "") for sub, sc in runs for c in ctrls]
 
 
 def controllers_table(model: str | None = None) -> dict:
@@ -339,7 +346,8 @@ def _describe(summary: dict, out: Path) -> str:
         + (f"; {rate:.3g} rollouts/s, {summary['env_steps_per_s']:.3g} env steps/s"
            + (" incl. compilation" if summary["rate_includes_compile"] else "") if rate else "")
         + f") on {summary['device_count']} {summary['backend']} device(s); {summary['rollouts_resumed']} resumed\n"
-        f"wrote {out}/results.npz, results.csv, basin.png, summary.json"
+        + (f"{scenario_args.describe(summary)}\n" if summary.get("per_scenario") else "")
+        + f"wrote {out}/results.npz, results.csv, basin.png, summary.json"
     )
 
 
@@ -396,12 +404,12 @@ def _sweep(args, parser) -> int:
     except (SweepConflict, GridError) as e:
         parser.error(str(e))
     if args.command == "compare" and main_process:
-        out = Path(args.out)
-        table = report.compare_table(runs)
-        report.save_basin_png(out / "compare.png", runs)
-        save_text_atomic(out / "compare.json", strict_json(table))
-        print(report.format_compare_table(table))
-        print(f"wrote {out}/compare.png, compare.json")
+        for out, idx in scenario_args.compare_groups([(o, c) for o, c, _ in runnable]).items():
+            table = report.compare_table([runs[i] for i in idx])
+            report.save_basin_png(out / "compare.png", [runs[i] for i in idx])
+            save_text_atomic(out / "compare.json", strict_json(table))
+            print(report.format_compare_table(table))
+            print(f"wrote {out}/compare.png, compare.json")
     return 0
 
 

@@ -1,16 +1,21 @@
-"""Sweep configuration and the push grid (phase x impulse, one direction).
+"""Sweep configuration and the push grid (phase x impulse, one direction, optionally x scenarios).
 
 A sweep is a frozen :class:`SweepConfig` (plain Python values, hashable, so it
 keys the jit cache and the results directory) and the rollouts it implies:
-row ``i = phase_index * n_impulses + impulse_index``. Every rollout draws its
-randomness from ``fold_in(PRNGKey(seed), i)``, so results do not depend on the
-chunk size, the number of devices or the order chunks run in.
+row ``i = phase_index * n_impulses + impulse_index``. With scenario axes
+(``SweepConfig.scenario``: payload, slope, noise, delay, terrain of
+:mod:`mjx_coman.scenarios`) every cell of that grid runs once per scenario,
+scenario-minor: row ``i = cell * n_scenarios + scenario_index`` (so rows
+``s::n_scenarios`` are scenario ``s``'s grid, in the order above). Every
+rollout draws its randomness from ``fold_in(PRNGKey(seed), i)``, so results
+do not depend on the chunk size, the number of devices or the order chunks run in.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import math
 from typing import NamedTuple
@@ -19,6 +24,11 @@ import numpy as np
 
 DIRECTIONS_RAD = {"forward": 0.0, "left": math.pi / 2, "backward": math.pi, "right": -math.pi / 2}
 RESULTS_VERSION = 2  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not
+
+
+# scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config
+SCENARIO_AXES = ("delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
+MJX_CONTROL_PERIOD_S = 0.002
 
 
 class GridError(ValueError):
@@ -112,6 +122,8 @@ class SweepConfig:
         randomize_spring_pct: MJX: per-rollout uniform +-% on the SEA spring stiffness (one factor per joint).
         randomize_delay_ticks: MJX: per-rollout uniform integer offset in [-k, k] control ticks on the
             transport delay (nominal 10 ticks = 20 ms).
+        scenario: MJX: ``((axis, (value, ...)), ...)`` sorted by axis (:data:`SCENARIO_AXES`): every grid cell
+            runs under each combination (``freeze_scenario``; ``terrain`` takes one value, a scene); ``()``: none.
         seed: PRNG seed.
         chunk: rollouts per chunk (one jitted call; also the resume unit).
         x64: simulate in 64-bit floats.
@@ -139,6 +151,7 @@ class SweepConfig:
     encoder_offset_std_rad: float = 0.0
     randomize_spring_pct: float = 0.0
     randomize_delay_ticks: int = 0
+    scenario: tuple = ()
     seed: int = 0
     chunk: int = 256
     x64: bool = False
@@ -191,7 +204,58 @@ class SweepConfig:
             raise GridError(f"seed must lie in [0, 2**32), got {self.seed}")
         if self.chunk < 1:
             raise GridError(f"chunk must be >= 1, got {self.chunk}")
+        self._validate_scenario()
         return self
+
+    def _validate_scenario(self) -> None:
+        if not self.scenario:
+            return
+        sc = self.scenario
+        if not isinstance(sc, tuple) or any(not (isinstance(a, tuple) and len(a) == 2 and isinstance(a[1], tuple))
+                                            for a in sc):
+            raise GridError(f"scenario must be ((axis, (value, ...)), ...), got {sc!r} (use freeze_scenario)")
+        names = [a for a, _ in sc]
+        for a in names:
+            if a not in SCENARIO_AXES:
+                raise GridError(f"unknown scenario axis {a!r}; choose from {', '.join(SCENARIO_AXES)}")
+        if names != sorted(set(names)):
+            raise GridError(f"scenario axes must be sorted and distinct, got {names} (use freeze_scenario)")
+        if self.model != "mjx":
+            raise GridError(f"scenario axis {names[0]} applies to --model mjx only, got --model {self.model}")
+        from mjx_coman.scenarios import Scenario, check_delay, nominal_delay_ticks
+
+        for a, values in sc:
+            if not values:
+                raise GridError(f"scenario axis {a} has no values")
+            if a == "terrain" and len(values) > 1:
+                raise GridError(f"terrain takes one value per sweep, got {list(values)} (each terrain is a scene "
+                                "and its own run)")
+            for v in values:
+                try:
+                    if a == "terrain" and Scenario(terrain=v).validate().terrain != v:
+                        raise ValueError(f"terrain {v!r} must be written {Scenario(terrain=v).validate().terrain!r}")
+                    Scenario(**{a: v}).validate()
+                    if a == "delay_ms":  # on the MJX plant's 2 ms control tick (rechecked on the built env)
+                        check_delay(v, nominal_delay_ticks(MJX_CONTROL_PERIOD_S), MJX_CONTROL_PERIOD_S)
+                except ValueError as e:
+                    raise GridError(f"scenario axis {a}: {e}") from None
+            if len(set(values)) != len(values):
+                raise GridError(f"scenario axis {a} repeats a value: {list(values)}")
+
+    @property
+    def n_scenarios(self) -> int:
+        """Scenario combinations per grid cell (1 without scenario axes)."""
+        return math.prod(len(v) for _, v in self.scenario) if self.scenario else 1
+
+    def scenarios(self) -> list[dict]:
+        """``{axis: value}`` of each scenario, in row order (the last axis fastest); ``[{}]`` without axes."""
+        names = [a for a, _ in self.scenario]
+        return [dict(zip(names, combo)) for combo in itertools.product(*(v for _, v in self.scenario))]
+
+    @property
+    def terrain(self) -> str:
+        """The sweep's terrain (``flat`` unless a terrain axis says otherwise)."""
+        return dict(self.scenario).get("terrain", ("flat",))[0]
 
     def overrides(self) -> dict:
         """``controller_overrides`` as a dict."""
@@ -207,12 +271,13 @@ class SweepConfig:
 
     @property
     def n_rollouts(self) -> int:
-        return len(self.phases) * len(self.impulses_ns)
+        return len(self.phases) * len(self.impulses_ns) * self.n_scenarios
 
     def compiled_part(self) -> "SweepConfig":
         """The configuration without what reaches the rollouts as inputs (seed, grid, chunk).
 
-        Models see only this, so sweeps that differ in seed or grid share compiled code.
+        Models see only this, so sweeps that differ in seed or grid share compiled code. The scenario
+        axes stay (a rollout finds its scenario from its index: ``index % n_scenarios``).
         """
         return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1)
 
@@ -221,6 +286,10 @@ class SweepConfig:
         d = dataclasses.asdict(self)
         d["phases"], d["impulses_ns"] = list(self.phases), list(self.impulses_ns)
         d["controller_overrides"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.controller_overrides}
+        if self.scenario:
+            d["scenario"] = {a: list(v) for a, v in self.scenario}
+        else:
+            del d["scenario"]  # absent, so that sweeps without scenarios keep their hashes
         d["results_version"] = RESULTS_VERSION
         return d
 
@@ -230,6 +299,7 @@ class SweepConfig:
         d = {k: v for k, v in d.items() if k != "results_version"}
         d["phases"], d["impulses_ns"] = tuple(d["phases"]), tuple(d["impulses_ns"])
         d["controller_overrides"] = freeze_overrides(d.get("controller_overrides") or {})
+        d["scenario"] = freeze_scenario(d.get("scenario") or {})
         return cls(**d)
 
     def hash(self) -> str:
@@ -247,6 +317,15 @@ def freeze_overrides(overrides: dict) -> tuple:
     return tuple(sorted((str(k), _freeze(v)) for k, v in dict(overrides).items()))
 
 
+def freeze_scenario(axes: dict) -> tuple:
+    """``{axis: values}`` as the hashable, sorted ``scenario`` of a config (numbers as floats, terrain as text)."""
+    out = []
+    for a, values in sorted(dict(axes).items()):
+        vals = values if isinstance(values, (list, tuple)) else (values,)
+        out.append((str(a), tuple(str(v) if a == "terrain" else float(v) for v in vals)))
+    return tuple(out)
+
+
 class GridInputs(NamedTuple):
     """Per-rollout inputs, each of shape (n,).
 
@@ -255,21 +334,33 @@ class GridInputs(NamedTuple):
         phase: push start as a fraction of the step.
         impulse_ns: push impulse, N s.
         direction_rad: push heading, rad.
+        scenario_index: the row's scenario (``index % n_scenarios``; 0 without scenario axes).
     """
 
     index: np.ndarray
     phase: np.ndarray
     impulse_ns: np.ndarray
     direction_rad: np.ndarray
+    scenario_index: np.ndarray | None = None
 
 
 def grid_inputs(config: SweepConfig) -> GridInputs:
-    """All rollouts of a sweep, phase-major."""
+    """All rollouts of a sweep, phase-major, scenario-minor."""
     ph, imp = np.meshgrid(np.asarray(config.phases, float), np.asarray(config.impulses_ns, float), indexing="ij")
-    n = ph.size
+    k = config.n_scenarios
+    n = ph.size * k
+    index = np.arange(n, dtype=np.int32)
     return GridInputs(
-        index=np.arange(n, dtype=np.int32),
-        phase=ph.ravel(),
-        impulse_ns=imp.ravel(),
+        index=index,
+        phase=np.repeat(ph.ravel(), k),
+        impulse_ns=np.repeat(imp.ravel(), k),
         direction_rad=np.full(n, DIRECTIONS_RAD[config.direction]),
+        scenario_index=index % k,
     )
+
+
+def scenario_columns(config: SweepConfig, scenario_index: np.ndarray) -> dict:
+    """Per-row scenario values ``{axis: (n,) array}`` (floats; terrain as text) of rows with these scenario indices."""
+    rows = config.scenarios()
+    return {a: np.asarray([rows[i][a] for i in range(len(rows))])[np.asarray(scenario_index)]
+            for a, _ in config.scenario}

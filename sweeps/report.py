@@ -2,6 +2,12 @@
 
 Statistics never see a numerically bad rollout as a number: such rows carry
 ``reason == "nan"``, count as not recovered and are left out of maxima.
+
+A sweep with scenario axes (``SweepConfig.scenario``) records each row's
+scenario (``scenario_index`` and a column per axis); its summary's
+top-level statistics pool every scenario, and ``per_scenario`` gives each
+one's own (per phase, the limit-cycle comparison against its own unpushed
+walks); basin.png draws one map per scenario.
 """
 
 from __future__ import annotations
@@ -12,17 +18,29 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.grid import SweepConfig
+from sweeps.grid import SCENARIO_AXES, SweepConfig
 from sweeps.runner import SweepRun, save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
 
 CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
                "max_abs_footstep_adjustment_m", "fall_time_s", "reason")
 _BASE = set(CSV_COLUMNS) | {"nan"}
+_SCENARIO = ("scenario_index", *SCENARIO_AXES)
+
+
+def scenario_columns(results: dict) -> list[str]:
+    """The per-row scenario columns of the results (none without scenario axes)."""
+    return [k for k in _SCENARIO if k in results]
 
 
 def extra_columns(results: dict) -> list[str]:
     """The model's further per-rollout outputs (``RolloutOutputs.extra``), sorted."""
-    return sorted(k for k in results if k not in _BASE)
+    return sorted(k for k in results if k not in _BASE and k not in _SCENARIO)
+
+
+def scenario_rows(config: SweepConfig, results: dict, s: int) -> dict:
+    """The results of scenario ``s`` alone (rows ``s::n_scenarios``: that scenario's grid, phase-major)."""
+    k = config.n_scenarios
+    return {name: np.asarray(v)[s::k] for name, v in results.items()}
 
 
 def recovered(results: dict) -> np.ndarray:
@@ -70,10 +88,28 @@ def _cycle_stats(res: dict, ok: np.ndarray) -> dict:
     return dict(unpushed_cycle_mps=ref.tolist(), max_cycle_difference_mps=float(diff.max()) if diff.size else None)
 
 
+def _scenario_summary(cfg: SweepConfig, res: dict) -> list[dict]:
+    out = []
+    for s, values in enumerate(cfg.scenarios()):
+        sub = scenario_rows(cfg, res, s)
+        ok = recovered(sub)
+        cyc = _cycle_stats(sub, ok)
+        out.append(dict(scenario_index=s, scenario=values, recovery_rate=float(np.mean(ok)),
+                        fell=int(np.sum(sub["reason"] == "fell")), nan=int(np.sum(sub["reason"] == "nan")),
+                        **cyc, per_phase=per_phase(cfg, sub)))
+    return out
+
+
 def summarize(run: SweepRun) -> dict:
     """The summary.json content of a sweep."""
     cfg, res = run.config, run.results
     ok = recovered(res)
+    scen = _scenario_summary(cfg, res) if cfg.scenario else None
+    cycle = _cycle_stats(res, ok)
+    if scen is not None and cycle:  # each scenario against its own unpushed walks
+        diffs = [r["max_cycle_difference_mps"] for r in scen if r.get("max_cycle_difference_mps") is not None]
+        cycle = dict(unpushed_cycle_mps=None, max_cycle_difference_mps=max(diffs) if diffs else None)
+    per_phase_rows = phase_rows(cfg, res)
     t = run.timing
     pushed = res["impulse_ns"] > 0
     s2r = res["steps_to_recover"][ok & pushed]
@@ -85,8 +121,9 @@ def summarize(run: SweepRun) -> dict:
         fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
         median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
         max_abs_footstep_adjustment_m=_max_or_none(res["max_abs_footstep_adjustment_m"][ok]),
-        **_cycle_stats(res, ok),
-        per_phase=per_phase(cfg, res),
+        **cycle,
+        per_phase=per_phase_rows,
+        **({} if scen is None else dict(per_scenario=scen)),
         wall_s=t["wall_s"], first_chunk_s=t["first_chunk_s"], run_s=t["run_s"],
         rollouts_per_s=t["rollouts_per_s"], env_steps_per_s=t["env_steps_per_s"],
         rate_includes_compile=t["rate_includes_compile"], env_steps_per_rollout=t["ticks_per_rollout"],
@@ -99,12 +136,24 @@ def summarize(run: SweepRun) -> dict:
     )
 
 
+def phase_rows(cfg: SweepConfig, res: dict) -> list[dict]:
+    """:func:`per_phase`, over every scenario of a sweep with scenario axes: an impulse counts as recovered
+    at a phase only where every scenario recovered it."""
+    if not cfg.scenario:
+        return per_phase(cfg, res)
+    subs = [scenario_rows(cfg, res, s) for s in range(cfg.n_scenarios)]
+    ok = np.all([recovered(sub) for sub in subs], axis=0)
+    first = dict(subs[0], fell=~ok, nan=np.any([sub["nan"] for sub in subs], axis=0))
+    return per_phase(cfg, first)
+
+
 def results_csv(config: SweepConfig, results: dict) -> str:
     """One CSV row per rollout (the model's extra outputs as further columns)."""
     buf = io.StringIO()
     w = csv.writer(buf)
     extra = extra_columns(results)
-    w.writerow((*CSV_COLUMNS, *extra))
+    scen = scenario_columns(results)
+    w.writerow((*CSV_COLUMNS, *scen, *extra))
     force = np.asarray(results["impulse_ns"]) / config.push_duration_s
     for i in range(len(results["index"])):
         w.writerow([
@@ -112,6 +161,7 @@ def results_csv(config: SweepConfig, results: dict) -> str:
             f"{force[i]:.6g}", f"{results['direction_rad'][i]:.6g}", int(results["fell"][i]),
             int(results["steps_to_recover"][i]), f"{results['max_abs_footstep_adjustment_m'][i]:.6g}",
             f"{results['fall_time_s'][i]:.6g}", results["reason"][i],
+            *(results[k][i] if k == "terrain" else f"{float(results[k][i]):.6g}" for k in scen),
             *(f"{float(results[k][i]):.6g}" for k in extra),
         ])
     return buf.getvalue()
@@ -172,9 +222,18 @@ def save_basin_png(path: Path, runs: list[SweepRun]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(runs), figsize=(5.8 * len(runs), 4.8), squeeze=False, sharey=True)
-    for ax, run in zip(axes[0], runs):
-        plot_basin(ax, run.config, run.results)
+    panels = []
+    for run in runs:
+        if not run.config.scenario:
+            panels.append((run.config, run.results, None))
+            continue
+        for s, values in enumerate(run.config.scenarios()):
+            label = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
+            panels.append((run.config, scenario_rows(run.config, run.results, s),
+                           f"{run.config.controller}: {label}"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.8 * len(panels), 4.8), squeeze=False, sharey=True)
+    for ax, (cfg, res, title) in zip(axes[0], panels):
+        plot_basin(ax, cfg, res, title)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     _legend(fig)
     buf = io.BytesIO()
@@ -198,16 +257,22 @@ def compare_table(runs: list[SweepRun]) -> dict:
     """Per phase, each controller's largest recovered impulse; overall recovery rates."""
     cfg = runs[0].config
     rows = []
-    per = {r.config.controller: per_phase(r.config, r.results) for r in runs}
+    per = {r.config.controller: phase_rows(r.config, r.results) for r in runs}
     for k, ph in enumerate(cfg.phases):
         rows.append(dict(phase=float(ph), **{f"{c}_max_recovered_impulse_ns": per[c][k]["max_recovered_impulse_ns"]
                                             for c in per}))
-    return dict(
+    out = dict(
         controllers=list(per), direction=cfg.direction, push_duration_s=cfg.push_duration_s,
         recovery_rate={r.config.controller: float(np.mean(recovered(r.results))) for r in runs},
         per_phase=rows,
         wall_s={r.config.controller: r.timing["wall_s"] for r in runs},
     )
+    if cfg.scenario:
+        out["scenarios"] = cfg.scenarios()
+        out["recovery_rate_per_scenario"] = {
+            r.config.controller: [float(np.mean(recovered(scenario_rows(r.config, r.results, s))))
+                                  for s in range(r.config.n_scenarios)] for r in runs}
+    return out
 
 
 def format_compare_table(table: dict) -> str:

@@ -39,7 +39,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from sweeps.grid import SweepConfig, grid_inputs
+from sweeps.grid import SweepConfig, grid_inputs, scenario_columns
 from sweeps.models import RolloutInputs, check, get_model
 
 CHUNK_DIR = "chunks"
@@ -310,7 +310,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
                 time.sleep(delay_s)
         bar.close()
     _barrier("sweeps: all chunks written")
-    results = _assemble(inputs, [computed.get(i) or chunk_path(chunk_dir, i) for i in range(n_chunks)], n) \
+    results = _assemble(inputs, [computed.get(i) or chunk_path(chunk_dir, i) for i in range(n_chunks)], n, config) \
         if writer else None
     ticks = model.ticks_per_rollout(config)
     done = sum(rows(i) for i in todo)
@@ -337,8 +337,9 @@ def _progress(total: int, initial: int, enabled: bool, desc: str | None):
                 desc=desc or "sweep", dynamic_ncols=True, mininterval=0.5, smoothing=0.1)
 
 
-def _assemble(inputs, chunks: list, n: int) -> dict:
-    """Concatenate chunk outcomes (dicts, or files of resumed chunks) into per-rollout arrays."""
+def _assemble(inputs, chunks: list, n: int, config: SweepConfig | None = None) -> dict:
+    """Concatenate chunk outcomes (dicts, or files of resumed chunks) into per-rollout arrays (with the
+    scenario of each row, ``scenario_index`` and one column per axis, when the sweep has scenario axes)."""
     parts: dict[str, list] = {}
     for c in chunks:
         if isinstance(c, dict):
@@ -354,5 +355,8 @@ def _assemble(inputs, chunks: list, n: int) -> dict:
         raise RuntimeError(f"chunks hold {len(next(iter(out.values())))} rollouts, expected {n}")
     res = dict(index=inputs.index, phase=inputs.phase, impulse_ns=inputs.impulse_ns,
                direction_rad=inputs.direction_rad, **out)
+    if config is not None and config.scenario:
+        res["scenario_index"] = np.asarray(inputs.scenario_index, np.int32)
+        res.update(scenario_columns(config, inputs.scenario_index))
     res["reason"] = failure_reason(res["fell"], res["nan"])
     return res

@@ -75,3 +75,47 @@ def test_controller_overrides_are_part_of_the_identity_and_round_trip():
     assert tuned.compiled_part().overrides() == {"deadzone": (0.004, 0.004, 0.04, 0.04), "zeta": 0.2}
     assert SweepConfig.from_dict(tuned.to_dict()) == tuned
     assert base.to_dict()["results_version"] == 2  # results judged on ground truth: older folders are other sweeps
+
+
+def test_scenario_rows_are_scenario_minor_and_part_of_the_identity():
+    from sweeps.grid import freeze_scenario, scenario_columns
+
+    base = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(0.0, 2.0, 4.0))
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(0.0, 2.0, 4.0),
+                      scenario=freeze_scenario({"slope_deg": [0, 5], "payload_kg": [0, 1, 2]})).validate()
+    assert cfg.scenario == (("payload_kg", (0.0, 1.0, 2.0)), ("slope_deg", (0.0, 5.0)))
+    assert cfg.n_scenarios == 6 and cfg.n_rollouts == 6 * base.n_rollouts
+    g, g0 = grid_inputs(cfg), grid_inputs(base)
+    for s in range(6):  # rows s::6 are scenario s's grid, in the grid's own order
+        np.testing.assert_array_equal(g.phase[s::6], g0.phase)
+        np.testing.assert_array_equal(g.impulse_ns[s::6], g0.impulse_ns)
+        assert np.all(g.scenario_index[s::6] == s)
+    cols = scenario_columns(cfg, g.scenario_index)
+    assert cols["payload_kg"][:6].tolist() == [0, 0, 1, 1, 2, 2] and cols["slope_deg"][:6].tolist() == [0, 5] * 3
+    assert SweepConfig.from_dict(cfg.to_dict()) == cfg
+    assert "scenario" not in base.to_dict()  # sweeps without scenarios keep their hashes
+    assert cfg.hash() != base.hash()
+    assert cfg.compiled_part().scenario == cfg.scenario  # a rollout finds its scenario from its index
+    with pytest.raises(GridError, match="terrain takes one value"):
+        SweepConfig(model="mjx", scenario=freeze_scenario({"terrain": ["flat", "rough:2"]})).validate()
+    with pytest.raises(GridError, match="mjx only"):
+        SweepConfig(model="3lp", scenario=freeze_scenario({"payload_kg": [1]})).validate()
+
+
+def test_a_rollout_takes_its_own_scenarios_parameters():
+    """The MJX model's scenario parameters (host-built, one compilation for all) hold each scenario in its row."""
+    from mjx_coman.scenarios import select
+    from sweeps.grid import freeze_scenario
+    from sweeps.models import mjx
+
+    cfg = SweepConfig(model="mjx", scenario=freeze_scenario({"payload_kg": [0, 1.5], "delay_ms": [0, 10],
+                                                            "imu_noise_deg": [3]})).validate()
+    params, axes = mjx.scenario_env(cfg)
+    base = mjx.nominal_env(cfg.sensor_noise_scale)
+    torso = 1 + [i for i in range(params.model.body_mass.shape[1] - 1)
+                 if float(params.model.body_mass[1, i + 1] - params.model.body_mass[0, i + 1]) != 0][0]
+    for i, row in enumerate(cfg.scenarios()):
+        p = select(params, axes, i)
+        assert float(p.model.body_mass[torso] - base.model.body_mass[torso]) == pytest.approx(row["payload_kg"], 1e-6)
+        assert int(p.actuator.delay_ticks) == int(base.actuator.delay_ticks) + round(row["delay_ms"] / 2)
+        assert float(p.sensor.imu_orientation_noise_rad) == pytest.approx(math.radians(3), 1e-6)

@@ -63,6 +63,17 @@ def _results(out: Path) -> dict:
     (["map", "--set", "zeta=0"], "zeta"),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=1.5"], "hip_attack"),
     (["compare", "--model", "mjx", "--controllers", "open-loop,pid"], "'pid'"),
+    (["map", "--model", "mjx", "--axis", "gravity=1"], "'gravity'"),
+    (["map", "--model", "mjx", "--axis", "payload_kg"], "NAME=V1"),
+    (["map", "--model", "mjx", "--axis", "payload_kg=0,heavy"], "'heavy'"),
+    (["map", "--model", "mjx", "--axis", "payload_kg=0,40"], "payload_kg"),
+    (["map", "--model", "mjx", "--axis", "slope_deg=0,0"], "repeats"),
+    (["map", "--model", "mjx", "--axis", "delay_ms=0,500"], "delay_ms"),
+    (["map", "--model", "mjx", "--axis", "terrain=flat,bumpy"], "bumpy"),
+    (["map", "--model", "mjx", "--slope-deg", "5", "--axis", "slope_deg=0,5"], "both give slope_deg"),
+    (["map", "--model", "mjx", "--imu-noise-deg", "1,3"], "one value"),
+    (["map", "--model", "3lp", "--payload-kg", "1"], "--model mjx only"),
+    (["map", "--preset", "default", "--payload-kg", "1"], "--preset"),
 ])
 def test_bad_arguments_exit_2_with_one_line(args, names, tmp_path, capsys):
     from sweeps.cli import main
@@ -233,6 +244,12 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
      [(c, "mjx", 4, 256) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr")]),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
      [("", "mjx", 2 * 41, 256)]),
+    # scenario axes: batched ones multiply the grid; each terrain is its own run (a scene)
+    (["map", "--model", "mjx", "--phases", "2", "--axis", "payload_kg=0,1", "--axis", "slope_deg=-5,0,5"],
+     [("", "mjx", 2 * 41 * 6, 256)]),
+    (["compare", "--model", "mjx", "--controllers", "time-projection,dlqr", "--phases", "2", "--impulses", "0,1",
+      "--axis", "terrain=flat,rough:2", "--delay-ms", "10"],
+     [(f"terrain-{t}/{c}", "mjx", 4, 256) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
 ])
 def test_presets_and_overrides(argv, expected, tmp_path):
     from sweeps.cli import build_parser, plan_runs
@@ -247,6 +264,12 @@ def test_presets_and_overrides(argv, expected, tmp_path):
         assert [p[1].controller for p in plans] == ["time-projection", "time-projection"]
     if "--set" in argv:
         assert plans[0][1].controller == "open-loop" and plans[0][1].overrides() == {"hip_attack": 0.5}
+    if "--axis" in argv:
+        cfgs = [p[1] for p in plans]
+        assert len({c.hash() for c in cfgs}) == len(cfgs)  # scenarios are part of the hash
+        if "--delay-ms" in argv:
+            assert [c.terrain for c in cfgs] == ["flat", "flat", "rough:2", "rough:2"]
+            assert all(dict(c.scenario)["delay_ms"] == (10.0,) for c in cfgs)
 
 
 def test_controllers_command_lists_every_registered_controller(capsys):
