@@ -104,14 +104,21 @@ class WalkSpec(NamedTuple):
     Attributes:
         seconds: walk duration, s (rounded up to whole control ticks, and to whole ``SaveAt.every``).
         judge: the ground-truth thresholds (:class:`mjx_coman.ground_truth.Judge`).
+        checkpoint: rematerialize for reverse mode (``jax.checkpoint``): each tick keeps only its input
+            carry, and segments of ticks (the ``SaveAt`` records, else :func:`segment_ticks`) keep only theirs,
+            so a gradient's memory grows as segments + ticks per segment, not as ticks x one tick's residuals.
+            The primal and forward mode are unchanged.
     """
 
     seconds: float = 10.0
     judge: gt.Judge = gt.Judge()
+    checkpoint: bool = False
 
     def validate(self) -> "WalkSpec":
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds) and self.seconds > 0):
             raise ValueError(f"seconds={self.seconds!r} must be a finite positive number")
+        if not isinstance(self.checkpoint, bool):
+            raise ValueError(f"checkpoint={self.checkpoint!r} must be True or False")
         self.judge.validate()
         return self
 
@@ -273,6 +280,12 @@ def n_ticks(spec: WalkSpec, control_period_s: float, save: SaveAt | None = None)
     return int(math.ceil(round(spec.seconds / control_period_s, 6) / every)) * every
 
 
+def segment_ticks(total: int) -> int:
+    """The divisor of ``total`` nearest ``sqrt(total)`` (checkpointed segments of a walk without records)."""
+    divisors = [d for d in range(1, int(math.isqrt(total)) + 1) if total % d == 0]
+    return max(divisors) if divisors else 1
+
+
 def check_walk(controller, config, env_params, joystick: Joystick | None = None, privileged_ok: bool = False) -> None:
     """The checks :func:`walk` makes on concrete inputs (host; also call it before tracing a batch).
 
@@ -354,8 +367,18 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
                            fall_time=jnp.where(bad & ~c.fallen, time + dt, c.fall_time))
         return out, None
 
-    if save is None:
+    remat = jax.checkpoint if spec.checkpoint else (lambda fn: fn)
+    tick = remat(tick)
+    if save is None and not spec.checkpoint:
         c, _ = jax.lax.scan(tick, carry0, jnp.arange(total))
+        time_s = saved = None
+    elif save is None:
+        seg = segment_ticks(total)
+
+        def segment(c: _Carry, k0):
+            return jax.lax.scan(tick, c, k0 + jnp.arange(seg))[0], None
+
+        c, _ = jax.lax.scan(remat(segment), carry0, jnp.arange(total // seg) * seg)
         time_s = saved = None
     else:
         every = int(save.every)
@@ -365,7 +388,7 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
             t = (k0 + every).astype(f) * dt
             return c, (t, save.fn(RolloutState(c.env, c.ctrl, c.telemetry, c.command, t)))
 
-        c, (time_s, saved) = jax.lax.scan(record, carry0, jnp.arange(total // every) * every)
+        c, (time_s, saved) = jax.lax.scan(remat(record), carry0, jnp.arange(total // every) * every)
 
     pushed = jnp.any(push.force_n != 0)
     v = gt.verdict(c.judge.log, push.start_s + push.duration_s, pushed, c.fallen, judge)
@@ -381,6 +404,12 @@ def pelvis_and_com(state: RolloutState) -> dict:
     """A save function: pelvis and CoM positions (world) and the common telemetry without ``extra``."""
     return dict(pelvis_m=gt.pelvis_m(state.env.data), com_m=gt.com_m(state.env.data),
                 telemetry=state.telemetry._replace(extra=()))
+
+
+def pelvis_com_and_torque(state: RolloutState) -> dict:
+    """:func:`pelvis_and_com` and the torques: the link torque of the tick's last physics step
+    (``data.ctrl``) and the command's target (the controller's, before the transport delay)."""
+    return dict(pelvis_and_com(state), link_torque_nm=state.env.data.ctrl, command_nm=state.command.target)
 
 
 def _build(core, spec: WalkSpec, save, privileged_ok: bool, axes):

@@ -1,7 +1,9 @@
 """Command line: one walk of the simulated COMAN under any registered controller, optionally pushed.
 
 ``python -m mjx_coman.walk [--controller time-projection] [--set KEY=VALUE ...] --speed 0.1 --seconds 10
-[--push-ns 4 --push-phase 0.5 --push-dir forward] [--push-step 5] [--seed 0] [--plot FILE.png] [--json]``
+[--push-ns 4 --push-phase 0.5 --push-dir forward] [--push-step 5] [--seed 0] [--plot FILE.png] [--json]
+[--payload-kg 1 --payload-body DWYTorso --payload-com-m -0.01,0,0] [--slope-deg 5] [--terrain rough:2|stairs:5|flat]
+[--imu-noise-deg 3] [--joint-noise-deg 1] [--delay-ms 10]``
 
 Runs the controller (:mod:`mjx_coman.controllers`; ``--set`` changes any of
 its settings) in the generic rollout (:func:`mjx_coman.rollout.walk`) for
@@ -12,6 +14,11 @@ ground truth (:mod:`mjx_coman.ground_truth`). The push is a force of
 impulse is ``--push-ns`` N s, starting at phase ``--push-phase`` (0 to 1) of
 walking step ``--push-step`` (0 is the controller's first walking step, after
 any start-up). ``--plot`` draws the pelvis path and the footsteps.
+
+The scenario options (:mod:`mjx_coman.scenarios`: seed 001's payload,
+slope, rough ground, sensor noise and delay; stairs) change the robot and
+its world, never the controller, which stays blind to them; the JSON output
+records the scenario.
 
 Every argument is checked before anything is built: a bad one exits with
 status 2 and one line on stderr naming it.
@@ -59,7 +66,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the sensor noise")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="draw pelvis and footstep trajectories")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    g = p.add_argument_group("scenario (mjx_coman.scenarios; the controller is not told)")
+    g.add_argument("--payload-kg", type=float, default=0.0, help="mass added to --payload-body, kg (seed 001: 1)")
+    g.add_argument("--payload-body", default="DWYTorso", help="the body carrying the payload (default DWYTorso)")
+    g.add_argument("--payload-com-m", default="0,0,0", metavar="X,Y,Z",
+                   help="payload CoM from the body's CoM, body frame, m (seed 001: -0.01,0,0, 1 cm back)")
+    g.add_argument("--slope-deg", type=float, default=0.0, help="floor slope, + uphill in the walking direction, deg")
+    g.add_argument("--terrain", default="flat", metavar="flat|rough:CM[:SEED]|stairs:CM",
+                   help="ground: flat, rough (+-CM cm height field) or stairs (CM cm risers, up in +x)")
+    g.add_argument("--imu-noise-deg", type=float, default=None, help="std of the IMU orientation noise, deg "
+                                                                     "(default: COMAN's nominal 0.11)")
+    g.add_argument("--joint-noise-deg", type=float, default=None, help="std of the link encoder noise, deg (default 0)")
+    g.add_argument("--delay-ms", type=float, default=0.0, help="extra controller-to-robot delay, ms (on the 20 ms)")
     return p
+
+
+def scenario_from_args(args: argparse.Namespace, control_period_s: float):
+    """The :class:`mjx_coman.scenarios.Scenario` of the options (nothing built).
+
+    Raises:
+        ValueError: one line naming the option and its bad value.
+    """
+    from mjx_coman.scenarios import NAMES, Scenario, check_delay, nominal_delay_ticks
+
+    try:
+        com = tuple(float(v) for v in str(args.payload_com_m).split(","))
+    except ValueError:
+        raise ValueError(f"--payload-com-m must be X,Y,Z in m, got {args.payload_com_m!r}") from None
+    try:
+        sc = Scenario(payload_kg=args.payload_kg, payload_body=args.payload_body, payload_com_m=com,
+                      slope_deg=args.slope_deg, terrain=args.terrain, imu_noise_deg=args.imu_noise_deg,
+                      joint_noise_deg=args.joint_noise_deg, delay_ms=args.delay_ms).validate()
+        check_delay(sc.delay_ms, nominal_delay_ticks(control_period_s), control_period_s)
+    except ValueError as e:
+        msg = str(e)
+        name = next((n for n in NAMES if msg.startswith(n)), None)
+        raise ValueError(f"--{name.replace('_', '-')}: {msg}" if name else msg) from None
+    return sc
 
 
 def validate(args: argparse.Namespace) -> None:
@@ -113,6 +156,7 @@ def validate(args: argparse.Namespace) -> None:
     except ValueError:
         raise ValueError(f"--speed {args.speed:g} is beyond {name}'s +-{gait.max_forward_mps:g} m/s") from None
     args.gait = gait
+    args.scenario = scenario_from_args(args, gait.control_period_s)
     if args.push_ns > 0:
         end = push_start_s(gait, args.push_step, args.push_phase) + args.push_duration
         if end > args.seconds:
@@ -138,19 +182,22 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     import numpy as np
 
     from mjx_coman import rollout as ro
+    from mjx_coman import scenarios
 
     ctrl, config = controllers.load(args.controller_name, args.overrides)
-    env_params = ro.walking_env_params()
-    judge = ro.WalkSpec().judge
+    env_params = ro.plant_env_params(args.gait.plant)
+    if args.scenario != scenarios.Scenario():
+        env_params = scenarios.scenario_env_params(env_params, args.scenario)
+    judge = scenarios.scenario_judge(args.scenario)
     if args.push_ns > 0:
         start = push_start_s(args.gait, args.push_step, args.push_phase)
         push = ro.make_push(start, args.push_duration, push_force_n(args.push_ns, args.push_duration, args.push_dir))
     else:
         start = None
         push = ro.no_push()
-    save = ro.SaveAt(ro.pelvis_and_com, every=10)
+    save = ro.SaveAt(ro.pelvis_com_and_torque, every=10)
     t0 = time.perf_counter()
-    fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=args.seconds), save, privileged_ok=args.privileged)
+    fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=args.seconds, judge=judge), save, privileged_ok=args.privileged)
     res = fn(config, env_params, push, jax.random.PRNGKey(args.seed), controllers.joystick(args.speed))
     res = jax.tree_util.tree_map(np.asarray, res)
     wall = time.perf_counter() - t0
@@ -169,6 +216,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
                                    f"velocity stays within {judge.recover_tol_mps:g} m/s of the limit cycle the walk "
                                    f"ends in ({judge.confirm_steps} steps in a row at least)"),
         "max_abs_footstep_adjustment_m": float(res.max_abs_footstep_adjustment_m),
+        **stance_metrics(res, args.gait.plant),
         "speed_mps": args.speed,
         "seconds": args.seconds,
         "push": None if args.push_ns <= 0 else {
@@ -176,10 +224,29 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
             "phase": args.push_phase, "duration_s": args.push_duration, "start_s": float(start),
             "force_n": list(push_force_n(args.push_ns, args.push_duration, args.push_dir)),
         },
+        "scenario": args.scenario.to_dict(),
         "seed": args.seed,
         "wall_s": round(wall, 2),
     }
     return summary, res
+
+
+def stance_metrics(res, plant: str) -> dict:
+    """CoM drift (horizontal CoM displacement from the first record to the last, before any fall) and, for a
+    torque-controlled plant, the torque-tracking error: RMS and largest |link torque - commanded torque| over
+    the joints and the records (commanded before the transport delay, so the delay's lag counts as error)."""
+    import numpy as np
+
+    com = np.asarray(res.saved["com_m"])
+    t = np.asarray(res.time_s)
+    ok = t <= float(res.fall_time_s) if bool(res.fell) else np.ones(t.shape, bool)
+    com = com[ok]
+    out = {"plant": plant, "com_drift_m": float(np.linalg.norm(com[-1, :2] - com[0, :2])) if len(com) else None}
+    if plant != "position":
+        err = (np.asarray(res.saved["link_torque_nm"]) - np.asarray(res.saved["command_nm"]))[ok]
+        out["torque_tracking_rms_nm"] = float(np.sqrt(np.mean(err ** 2))) if err.size else None
+        out["torque_tracking_max_nm"] = float(np.max(np.abs(err))) if err.size else None
+    return out
 
 
 def plot(res, path: str, title: str) -> None:

@@ -8,9 +8,9 @@ the controller's ``first_step_s + k step_time_s`` (one start-up phase for
 the time-projection family), so the push, on the upper torso, starts at
 ``first_step_s + (push_step + phase) step_time_s`` as in ``python -m
 mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts
-``first_step_s + n_steps step_time_s``. The environment is
-:func:`mjx_coman.rollout.walking_env_params` (the seed's gains with a stiffer
-ankle roll loop). Falls and steps to recover are the simulator's
+``first_step_s + n_steps step_time_s``. The environment is the controller's
+plant, :func:`mjx_coman.rollout.plant_env_params` (position control: the
+seed's gains with a stiffer ankle roll loop; or a torque plant). Falls and steps to recover are the simulator's
 (:mod:`mjx_coman.ground_truth`); each rollout also records its touchdowns,
 mean speed and the limit cycle it ends in.
 
@@ -28,6 +28,15 @@ controller was designed for:
 Everything randomised is an array leaf of the environment parameters, built
 inside the vmapped rollout, which is the same as vmapping ``walk`` with the
 axes of :func:`mjx_coman.env.batch_axes` (``model_fields=("body_mass", "body_inertia")``).
+
+A sweep's scenario axes (``SweepConfig.scenario``: payload, slope, sensor
+noise, delay of :mod:`mjx_coman.scenarios`) are applied to the nominal
+robot first (the randomisation above then scales its payload too): every
+combination's parameters are built once on the host
+(:func:`mjx_coman.scenarios.batched_env_params`) and a rollout takes row
+``index % n_scenarios`` of them, so one compilation runs them all. The
+terrain is the scene (a model of its own, and a compilation); the fall judge
+measures heights above it.
 
 Tuning (:func:`tune_problem`): forward-mode derivatives (``jax.jacfwd``:
 MJX's constraint solver runs a ``lax.while_loop``, which reverse mode cannot
@@ -84,15 +93,21 @@ def check(config: SweepConfig, build: bool = True) -> None:
     if abs(gait.step_time_s - config.step_time_s) > 1e-9:
         raise GridError(f"step_time_s={config.step_time_s} differs from controller {config.controller}'s "
                         f"{gait.step_time_s:g} s (set its step time with --set, if it has one)")
+    if config.scenario:
+        try:
+            scenario_env(config)
+        except ValueError as e:
+            raise GridError(f"scenario: {e}") from None
 
 
-def nominal_env(sensor_noise_scale: float):
-    """The nominal robot's environment parameters with the sensor noise scaled (host-built, cached per float width)."""
-    return _nominal_env(float(sensor_noise_scale), bool(jax.config.jax_enable_x64))
+def nominal_env(sensor_noise_scale: float, plant: str = "position"):
+    """The nominal robot's environment parameters on a controller's plant (``Gait.plant``:
+    :func:`mjx_coman.rollout.plant_env_params`) with the sensor noise scaled (host-built, cached per float width)."""
+    return _nominal_env(float(sensor_noise_scale), str(plant), bool(jax.config.jax_enable_x64))
 
 
 @functools.lru_cache(maxsize=8)
-def _nominal_env(sensor_noise_scale: float, x64: bool):
+def _nominal_env(sensor_noise_scale: float, plant: str, x64: bool):
     from mjx_coman.sensors import make_sensor_params
 
     with jax.ensure_compile_time_eval():
@@ -102,7 +117,27 @@ def _nominal_env(sensor_noise_scale: float, x64: bool):
                                     gyro_noise_rad_per_s=float(d.gyro_noise_rad_per_s) * s,
                                     ft_force_noise_n=float(d.ft_force_noise_n) * s,
                                     ft_torque_noise_nm=float(d.ft_torque_noise_nm) * s)
-        return dataclasses.replace(_rollout_module().walking_env_params(), sensor=sensor)
+        return dataclasses.replace(_rollout_module().plant_env_params(plant), sensor=sensor)
+
+
+def scenario_list(config: SweepConfig) -> list:
+    """The :class:`mjx_coman.scenarios.Scenario` of each scenario index of a sweep."""
+    from mjx_coman.scenarios import Scenario
+
+    return [Scenario(**row) for row in config.scenarios()]
+
+
+def scenario_env(config: SweepConfig):
+    """``(params, in_axes)`` of the sweep's scenarios on its nominal robot (host-built, cached per float width)."""
+    return _scenario_env(config.compiled_part(), bool(jax.config.jax_enable_x64))
+
+
+@functools.lru_cache(maxsize=8)
+def _scenario_env(config: SweepConfig, x64: bool):
+    from mjx_coman.scenarios import batched_env_params
+
+    with jax.ensure_compile_time_eval():
+        return batched_env_params(nominal_env(config.sensor_noise_scale, gait(config).plant), scenario_list(config))
 
 
 def controller(config: SweepConfig):
@@ -117,8 +152,11 @@ def gait(config: SweepConfig):
 
 def walk_spec(config: SweepConfig):
     """The static :class:`mjx_coman.rollout.WalkSpec` of a sweep."""
+    from mjx_coman.scenarios import scenario_judge
+
     g = gait(config)
-    return _rollout_module().WalkSpec(seconds=g.first_step_s + config.n_steps * g.step_time_s)
+    return _rollout_module().WalkSpec(seconds=g.first_step_s + config.n_steps * g.step_time_s,
+                                      judge=scenario_judge(config.terrain))
 
 
 def ticks_per_rollout(config: SweepConfig) -> int:
@@ -162,9 +200,14 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     ro = _rollout_module()
     ctrl, cfg = controller(config)
     g = ctrl.gait(cfg)
-    env = nominal_env(config.sensor_noise_scale)
+    env = nominal_env(config.sensor_noise_scale, g.plant)
     key = jax.random.wrap_key_data(inputs.key, impl="threefry2x32")
     walk_key, robot_key = jax.random.split(key)
+    if config.scenario:
+        from mjx_coman.scenarios import select
+
+        params, axes = scenario_env(config)
+        env = select(params, axes, inputs.index % config.n_scenarios)
     env = randomized_env(env, config, robot_key)
     f = jnp.result_type(float)
     mag = inputs.impulse_ns / config.push_duration_s
@@ -184,7 +227,9 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
 
 def prepare(config: SweepConfig, inputs: RolloutInputs):
     """Build (and cache) the nominal robot and the controller's config outside the sharded call's trace."""
-    nominal_env(config.sensor_noise_scale)
+    nominal_env(config.sensor_noise_scale, gait(config).plant)
+    if config.scenario:
+        scenario_env(config)
     controller(config)
     return None
 
@@ -251,7 +296,7 @@ def tune_problem(tc) -> TuneProblem:
         raise ValueError(f"controller {tc.controller!r} has no tunable settings to tune")
     tf = {n: _transform(by_name[n]) for n in names}
     g = ctrl.gait(cfg0)
-    env = nominal_env(1.0)
+    env = nominal_env(1.0, g.plant)
     start = g.first_step_s + tc.push_step * g.step_time_s
     seconds = start + g.step_time_s + TUNE_SECONDS_AFTER
     spec, save = ro.WalkSpec(seconds=seconds), ro.SaveAt(sway_record, every=5)
