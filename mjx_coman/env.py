@@ -180,6 +180,23 @@ def batch_axes(params: EnvParams, model_fields: tuple[str, ...] = ()) -> EnvPara
                      n_substeps=params.n_substeps)
 
 
+def solver_iterations(params: EnvParams, iterations: int = 1) -> EnvParams:
+    """``params`` with MJX's constraint solver capped at ``iterations`` Newton iterations (static).
+
+    Reverse mode: MJX runs its solver in a ``lax.while_loop`` (``mujoco/mjx/_src/solver.py``), which
+    ``jax.grad`` cannot differentiate, except at ``opt.iterations == 1``, where it takes one warm-started
+    Newton step with no loop; the line search is a scan, which reverse mode differentiates.
+    ``bench/reverse_mode.py`` measures what one iteration costs against the model's 4 on the same walks.
+
+    Raises:
+        ValueError: ``iterations`` not a whole number >= 1.
+    """
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+        raise ValueError(f"iterations={iterations!r} must be a whole number >= 1")
+    model = params.model
+    return dataclasses.replace(params, model=model.replace(opt=model.opt.replace(iterations=iterations)))
+
+
 @functools.lru_cache(maxsize=8)
 def standing_posture(knee_rad: float = STANDING_KNEE_RAD) -> tuple[np.ndarray, np.ndarray]:
     """A crouched standing posture: knees bent, feet flat, CoM over the mid-feet.

@@ -6,6 +6,7 @@ per family); the long ones (10 s walks, speeds, a 64-walk batch) are marked slow
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
@@ -191,3 +192,56 @@ def test_a_batch_of_64_pushed_walks_in_one_vmap(walking_env):
                                                 controllers.joystick()))
     assert res.fell.shape == (n,) and np.all(np.isfinite(res.mean_speed_mps))
     assert not res.fell[imps < 1.0].any()  # gentle pushes never topple it
+
+
+def test_checkpointed_segments_divide_the_walk():
+    for total in (1, 7, 150, 250, 5000):
+        seg = ro.segment_ticks(total)
+        assert total % seg == 0 and seg <= math.isqrt(total)
+    assert ro.segment_ticks(250) == 10 and ro.segment_ticks(5000) == 50
+
+
+def test_solver_iterations_is_static_and_checked(walking_env):
+    from mjx_coman.env import solver_iterations
+
+    assert solver_iterations(walking_env, 1).model.opt.iterations == 1
+    assert walking_env.model.opt.iterations == 4  # the model's own, untouched
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="iterations"):
+            solver_iterations(walking_env, bad)
+    with pytest.raises(ValueError, match="checkpoint"):
+        ro.WalkSpec(checkpoint=1).validate()
+
+
+@pytest.mark.slow
+def test_reverse_mode_through_a_wbc_stand_rollout_matches_central_differences():
+    """jax.grad of a pushed 0.3 s wbc-stand walk's CoM sway with respect to the CoM stiffness, through MJX
+    at one solver iteration (no while_loop) and checkpointed ticks: equal to forward mode, and to central
+    differences of the same walk (float64; encoders at 40 bits so no quantum step sits inside the
+    differences). Slow: the reverse-mode compilation alone takes about 5 minutes on 2 cores."""
+    from mjx_coman.env import solver_iterations
+    from mjx_coman.sensors import make_sensor_params
+
+    with jax.enable_x64(True):
+        ctrl, cfg = controllers.load("wbc-stand", {})
+        env = ro.plant_env_params("torque-ideal")
+        env = solver_iterations(dataclasses.replace(env, sensor=make_sensor_params(encoder_bits=40)))
+        push = ro.make_push(0.02, 0.1, impulse_ns=3.0)
+        spec, save = ro.WalkSpec(seconds=0.3, checkpoint=True), ro.SaveAt(ro.pelvis_and_com, every=10)
+        key = jax.random.PRNGKey(0)
+
+        def sway(kp):
+            r = ro.walk(ctrl.core(), cfg.replace(com_kp_per_s2=kp), env, push, key, spec, None, save)
+            x = r.saved["com_m"][:, 0]
+            return jnp.mean((x - x[0]) ** 2) * 1e4, r.fell
+
+        kp = cfg.com_kp_per_s2
+        value, fell = jax.jit(sway)(kp)
+        assert not bool(fell) and float(value) > 1e-3  # the push moves the CoM
+        rev = float(jax.jit(jax.grad(lambda k: sway(k)[0]))(kp))
+        fwd = float(jax.jit(lambda k: jax.jvp(lambda k: sway(k)[0], (k,), (jnp.ones_like(k),))[1])(kp))
+        f = jax.jit(lambda k: sway(k)[0])
+        fd = {h: float((f(kp * (1 + h)) - f(kp * (1 - h))) / (2 * h * kp)) for h in (1e-3, 1e-4)}
+    assert rev < 0  # stiffer CoM task, less sway
+    assert rev == pytest.approx(fwd, rel=1e-6)
+    assert any(d == pytest.approx(rev, rel=1e-2) for d in fd.values()), (rev, fd)
