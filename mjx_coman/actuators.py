@@ -266,10 +266,14 @@ def torque_limits_nm(params: ActuatorParams, dq_rad_per_s: jax.Array) -> tuple[j
 
     ``tau = (+-V - (alpha + beta A_c) q_dot) / beta``: +-33 N m at stall with the
     seed's 15 V and beta = 0.45 V/(N m), shrinking linearly with speed (Coulomb term ignored).
+    Braking (torque against the motion) is capped at the stall torque ``V / beta`` as well: the
+    back-EMF would allow more, the motor driver's current limit does not (and a torque limit that grew
+    with speed would let a numerical blow-up feed itself).
     """
     p = params
+    stall = p.supply_v / p.beta_v_per_nm
     emf = (p.alpha_v_s_per_rad / p.beta_v_per_nm + p.friction_nms_per_rad) * dq_rad_per_s
-    return -p.supply_v / p.beta_v_per_nm - emf, p.supply_v / p.beta_v_per_nm - emf
+    return jnp.maximum(-stall - emf, -stall), jnp.minimum(stall - emf, stall)
 
 
 def ideal_torque_nm(params: ActuatorParams, tau_des_nm: jax.Array, dq_rad_per_s: jax.Array) -> jax.Array:

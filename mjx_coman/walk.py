@@ -77,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--imu-noise-deg", type=float, default=None, help="std of the IMU orientation noise, deg "
                                                                      "(default: COMAN's nominal 0.11)")
     g.add_argument("--joint-noise-deg", type=float, default=None, help="std of the link encoder noise, deg (default 0)")
-    g.add_argument("--delay-ms", type=float, default=0.0, help="extra controller-to-robot delay, ms (on the 20 ms)")
+    g.add_argument("--delay-ms", type=float, default=0.0,
+                   help="extra controller-to-robot delay, ms, on the plant's own (position 20, torque-sea 10, torque-ideal 0)")
     return p
 
 

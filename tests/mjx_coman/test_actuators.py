@@ -146,6 +146,9 @@ def test_torque_limits_follow_eq20_at_the_supply():
     np.testing.assert_allclose(np.asarray(hi), (15.0 - 5.42 - 0.45 * 1.66) / 0.45, rtol=1e-6)
     no_load = 15.0 / (5.42 + 0.45 * 1.66)  # the seed's theoretic velocity bound: no torque left
     assert float(act.torque_limits_nm(p, jnp.full(NU, no_load))[1][0]) == pytest.approx(0.0, abs=1e-5)
+    lo, hi = act.torque_limits_nm(p, jnp.full(NU, -1.0))  # braking: capped at the stall torque
+    np.testing.assert_allclose(np.asarray(hi), 15.0 / 0.45, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lo), -(15.0 - 5.42 - 0.45 * 1.66) / 0.45, rtol=1e-6)
     tau = act.ideal_torque_nm(p, jnp.full(NU, 50.0), jnp.zeros(NU))
     np.testing.assert_allclose(np.asarray(tau), 15.0 / 0.45, rtol=1e-6)
 

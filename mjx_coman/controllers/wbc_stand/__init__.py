@@ -1,6 +1,9 @@
 """Standing balance by the whole-body QP on the torque-controlled COMAN: the family's ``CONTROLLER``.
 
-The stack of seeds 001 and 004 without any walking: each tick the floating
+The stack of seeds 001 and 004 without any walking: each tick the pelvis
+orientation is the gyro's, corrected toward the IMU's by a complementary
+filter (``imu_filter_s``: seed 001's 3 deg IMU noise, white at 500 Hz, would
+otherwise shake the robot through the orientation tasks), the floating
 base is estimated from the sensors (:mod:`mjx_coman.floating_base`, both
 soles anchored), the whole-body terms of the controller's nominal model are
 computed (:mod:`mjx_coman.dynamics`) and one QP (:mod:`mjx_coman.wbc`) turns
@@ -10,6 +13,8 @@ feet in contact, friction pyramids and the motor's torque limits (seed 001,
 eq. 2). The torques go out in torque mode; the plant is ideal
 (``wbc-stand``) or series-elastic (``wbc-stand-sea``). A failed solve is
 reported in ``Telemetry.ok`` (and the command is gravity compensation).
+The torques ramp in over ``startup_s`` from the reset, where the robot
+touches the floor without contact force yet.
 
 Modules: :mod:`.config` (settings, config pytree), :mod:`.controller` (``init``/``step``).
 """

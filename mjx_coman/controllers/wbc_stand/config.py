@@ -16,7 +16,7 @@ from mjx_coman.controllers.base import PLANTS, Setting
 from mjx_coman.env import MID_FOOT_AHEAD_M, standing_posture
 from mjx_coman.floating_base import sole_site_ids
 
-TUNABLE = ("com_ahead_m", "com_kp_per_s2", "com_kd_per_s", "com_weight", "base_kp_per_s2", "base_kd_per_s", "base_weight",
+TUNABLE = ("imu_filter_s", "com_ahead_m", "com_kp_per_s2", "com_kd_per_s", "com_weight", "base_kp_per_s2", "base_kd_per_s", "base_weight",
            "posture_kp_per_s2", "posture_kd_per_s", "posture_weight", "qdd_weight", "force_weight_per_n2")
 
 SETTINGS = (
@@ -24,6 +24,7 @@ SETTINGS = (
     Setting("plant", "torque-ideal", "torque-ideal or torque-sea: how the torques reach the joints"),
     Setting("fixed_upper_body", False, "waist and arms held by a joint PD outside the QP (seed 001)"),
     Setting("friction_coeff", 0.7, "design friction coefficient of the pyramids (the model's is 1)"),
+    Setting("startup_s", 0.05, "torques ramp in linearly over this time from the reset (no contact force yet), s"),
     Setting("com_ahead_m", MID_FOOT_AHEAD_M, "CoM held this far ahead of the ankles, m (the sole centre: 0.03)",
             True, (-0.07, 0.13)),
     Setting("com_kp_per_s2", 30.0, "CoM task stiffness, 1/s^2", True, (0.0, None)),
@@ -38,18 +39,21 @@ SETTINGS = (
     Setting("qdd_weight", 1e-3, "regularization of the accelerations", True, (0.0, None)),
     Setting("force_weight_per_n2", 1e-5, "regularization and distribution of the contact forces, 1/N^2", True,
             (0.0, None)),
+    Setting("imu_filter_s", 0.05, "time constant of the complementary filter that corrects the gyro-propagated "
+            "orientation toward the IMU's, s (0: the raw IMU)", True, (0.0, None)),
 )
 
 
 @functools.partial(
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
-    meta_fields=["knee_rad", "plant", "fixed_upper_body", "friction_coeff", "dt_s"],
+    meta_fields=["knee_rad", "plant", "fixed_upper_body", "friction_coeff", "startup_s", "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
 class Config:
     """Tunables (array leaves, named as the settings), the references, and static choices."""
 
+    imu_filter_s: jax.Array
     com_ahead_m: jax.Array
     com_kp_per_s2: jax.Array
     com_kd_per_s: jax.Array
@@ -69,6 +73,7 @@ class Config:
     plant: str
     fixed_upper_body: bool
     friction_coeff: float
+    startup_s: float
     dt_s: float = 0.002
 
     def replace(self, **kw) -> "Config":
@@ -93,12 +98,12 @@ def stance_references(knee_rad: float) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def make_config(knee_rad: float = 0.4, plant: str = "torque-ideal", fixed_upper_body: bool = False,
-                friction_coeff: float = 0.7, **tunables) -> Config:
+                friction_coeff: float = 0.7, startup_s: float = 0.05, **tunables) -> Config:
     """A validated config (host).
 
     Raises:
         ValueError: an unknown plant or setting, a knee outside [0.1, 1.2] rad, a friction
-            coefficient outside (0, 2], a negative or non-finite gain or weight.
+            coefficient outside (0, 2], a start-up outside [0, 1] s, a negative or non-finite gain or weight.
     """
     unknown = [k for k in tunables if k not in TUNABLE]
     if unknown:
@@ -109,6 +114,8 @@ def make_config(knee_rad: float = 0.4, plant: str = "torque-ideal", fixed_upper_
         raise ValueError(f"knee_rad={knee_rad!r} must lie in [0.1, 1.2]")
     if not (isinstance(friction_coeff, (int, float)) and 0.0 < friction_coeff <= 2.0):
         raise ValueError(f"friction_coeff={friction_coeff!r} must lie in (0, 2]")
+    if isinstance(startup_s, bool) or not (isinstance(startup_s, (int, float)) and 0.0 <= startup_s <= 1.0):
+        raise ValueError(f"startup_s={startup_s!r} must lie in [0, 1] s")
     if not isinstance(fixed_upper_body, bool):
         raise ValueError(f"fixed_upper_body={fixed_upper_body!r} must be true or false")
     values = {s.name: s.default for s in SETTINGS if s.tunable} | tunables
@@ -124,4 +131,5 @@ def make_config(knee_rad: float = 0.4, plant: str = "torque-ideal", fixed_upper_
     q, com, soles = stance_references(float(knee_rad))
     return Config(**{k: jnp.asarray(v, f) for k, v in values.items()}, posture_rad=jnp.asarray(q, f),
                   com_ref_m=jnp.asarray(com, f), sole_anchor_m=jnp.asarray(soles, f), knee_rad=float(knee_rad),
-                  plant=plant, fixed_upper_body=fixed_upper_body, friction_coeff=float(friction_coeff))
+                  plant=plant, fixed_upper_body=fixed_upper_body, friction_coeff=float(friction_coeff),
+                  startup_s=float(startup_s))

@@ -1,0 +1,80 @@
+"""wbc-stand's own pieces: the IMU's complementary filter, the start-up ramp, its settings' checks.
+
+Its walks (ideal and series-elastic plants, a forward-mode gradient) are the contract test's torque batch.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_coman import controllers
+from mjx_coman.controllers.wbc_stand.config import make_config
+from mjx_coman.controllers.wbc_stand.controller import filter_orientation
+from mjx_coman.sensors import quat_mul
+
+DT = 0.002
+
+
+def _angle_deg(a, b):
+    return np.degrees(2 * np.arccos(np.clip(np.abs(np.sum(a * b, -1)), 0, 1)))
+
+
+def _rotvec_quat(v):
+    th = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.concatenate([np.cos(th / 2), np.sinc(th / (2 * np.pi)) * v / 2], -1)
+
+
+@pytest.fixture(scope="module")
+def filtered():
+    """3 deg white IMU noise at 500 Hz on a pelvis turning at a steady 0.3 rad/s about y; exact gyro."""
+    n, w = 1500, np.array([0.0, 0.3, 0.0])
+    truth = np.stack([_rotvec_quat(w * DT * k) for k in range(n)])
+    noise = _rotvec_quat(np.random.default_rng(0).normal(0.0, np.radians(3.0), (n, 3)))
+    imu = np.stack([np.asarray(quat_mul(jnp.asarray(t), jnp.asarray(e))) for t, e in zip(truth, noise)])
+
+    def run(tau):
+        def step(q, meas):
+            q = filter_orientation(q, meas, jnp.asarray(w, jnp.float32), DT, jnp.asarray(tau, jnp.float32))
+            return q, q
+        return jax.lax.scan(step, jnp.asarray(imu[0], jnp.float32), jnp.asarray(imu[1:], jnp.float32))[1]
+
+    jitted = jax.jit(run)
+    return truth[1:], imu[1:], lambda tau: np.asarray(jitted(tau))
+
+
+def test_the_filter_averages_the_imu_noise_and_follows_the_gyro(filtered):
+    truth, imu, run = filtered
+    raw = _angle_deg(imu[500:], truth[500:])
+    filt = _angle_deg(run(0.05)[500:], truth[500:])
+    assert np.sqrt(np.mean(raw ** 2)) > 4.5  # 3 deg per axis: about 5.2 deg in all
+    # first-order averaging over T = 0.05 s (25 ticks): the noise's std falls by about sqrt(a / 2), a = 1/25
+    assert np.sqrt(np.mean(filt ** 2)) < 0.25 * np.sqrt(np.mean(raw ** 2))
+    assert abs(np.mean(filt) - np.mean(_angle_deg(run(0.05)[-200:], truth[-200:]))) < 0.5  # no drift, no lag build-up
+
+
+def test_a_zero_time_constant_is_the_raw_imu(filtered):
+    truth, imu, run = filtered
+    np.testing.assert_allclose(_angle_deg(run(0.0), imu), 0.0, atol=0.1)  # float32 arccos near 1: 0.06 deg
+
+
+def test_torques_ramp_in_over_the_start_up():
+    from mjx_coman import rollout as ro
+    from mjx_coman.controllers.base import Observation
+    from mjx_coman.env import reset
+
+    ctrl, cfg = controllers.load("wbc-stand", {})
+    env = ro.plant_env_params("torque-ideal")
+    s = reset(jax.random.PRNGKey(0), env, cfg.knee_rad)
+    step = jax.jit(lambda t: ctrl.step(cfg, ctrl.init(cfg, env, None), Observation(s.readings, controllers.joystick(),
+                                                                                   t, None))[1].target)
+    full = np.asarray(step(jnp.float32(1.0)))
+    assert np.abs(full).max() > 1.0  # knee and ankle pitch hold the crouch
+    np.testing.assert_allclose(np.asarray(step(jnp.float32(0.0))), full * DT / cfg.startup_s, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("kw, name", [(dict(startup_s=-0.1), "startup_s"), (dict(startup_s=2.0), "startup_s"),
+                                      (dict(imu_filter_s=-1.0), "imu_filter_s"), (dict(plant="position"), "plant")])
+def test_bad_settings_name_the_value(kw, name):
+    with pytest.raises(ValueError, match=name):
+        make_config(**kw)
