@@ -87,8 +87,13 @@ def step(config: Config, state, obs):
                                                qp_ineq_violation=info.ineq_violation.astype(dtype),
                                                qp_kkt_residual=info.kkt_residual.astype(dtype)))
     tel = tel._replace(com_m=(plant.com[:2] - mid).astype(dtype), com_vel_mps=plant.com_vel[:2].astype(dtype), ok=info.ok)
-    # start-up: the reset stands the robot on the floor without contact force, and full torques on a foot
-    # that bears no load yet spin it (ankle torques of 14 N m on a 5 deg downhill did); ramp them in
-    ramp = jnp.clip((obs.time_s + config.dt_s) / max(config.startup_s, config.dt_s), 0.0, 1.0).astype(dtype)
-    tau = ramp * sol.tau.astype(dtype)
+    tau = startup_ramp(obs.time_s, config.dt_s, config.startup_s).astype(dtype) * sol.tau.astype(dtype)
     return state, Command(tau, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32)), tel
+
+
+def startup_ramp(time_s, dt_s: float, startup_s: float):
+    """``min(1, (t + dt) / startup_s)``: the share of the QP's torques sent at the tick starting at ``t``.
+
+    The reset stands the robot on the floor without contact force, and full torques on a foot that bears no
+    load yet spin it (ankle torques of 14 N m on a 5 deg downhill did, and the simulation blew up)."""
+    return jnp.clip((time_s + dt_s) / max(startup_s, dt_s), 0.0, 1.0)
