@@ -247,6 +247,8 @@ def stance_metrics(res, plant: str) -> dict:
         err = (np.asarray(res.saved["link_torque_nm"]) - np.asarray(res.saved["command_nm"]))[ok]
         out["torque_tracking_rms_nm"] = float(np.sqrt(np.mean(err ** 2))) if err.size else None
         out["torque_tracking_max_nm"] = float(np.max(np.abs(err))) if err.size else None
+        late = err[t[ok] > 1.0]  # past the start-up transient
+        out["torque_tracking_rms_after_1s_nm"] = float(np.sqrt(np.mean(late ** 2))) if late.size else None
     return out
 
 
