@@ -339,8 +339,9 @@ def _describe(summary: dict, out: Path) -> str:
         f"{summary['model']} / {summary['controller']}: {summary['direction']} {summary['push_duration_s']:g} s pushes "
         f"during step {summary['push_step']}: {summary['recovery_rate']:.1%} of {summary['rollouts']} rollouts recovered "
         f"({summary['fell']} fell, {summary['nan']} NaN)\n"
-        f"largest recovered impulse (N s) per phase of the step: {best}\n"
-        f"{verdict}\n"
+        f"largest recovered impulse (N s) per phase of the step"
+        + (" (every scenario's rows pooled; per scenario below)" if summary.get("per_scenario") else "")
+        + f": {best}\n{verdict}\n"
         f"{summary['rollouts_run']} rollouts run in {summary['wall_s']:.1f} s (first chunk, with compilation, "
         f"{summary['first_chunk_s']:.1f} s"
         + (f"; {rate:.3g} rollouts/s, {summary['env_steps_per_s']:.3g} env steps/s"

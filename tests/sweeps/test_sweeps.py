@@ -284,3 +284,15 @@ def test_controllers_command_lists_every_registered_controller(capsys):
     zeta = next(s for s in tp["settings"] if s["name"] == "zeta")
     assert zeta["default"] == 0.1 and zeta["tunable"] and zeta["bounds"] == [0.0, 1.0]
     assert main(["controllers"]) == 0 and "joint-pd" in capsys.readouterr().out
+
+
+def test_scenario_lines_give_each_scenarios_own_largest_recovered_impulse():
+    from sweeps.scenario_args import describe
+
+    row = lambda i, sc, best: {"scenario_index": i, "scenario": sc, "recovery_rate": 0.5, "fell": 1, "nan": 0,  # noqa: E731
+                               "per_phase": [{"phase": 0.0, "max_recovered_impulse_ns": best}]}
+    text = describe({"per_scenario": [row(0, {"slope_deg": 0.0}, 6.0), row(1, {"slope_deg": 5.0}, None)]})
+    lines = text.splitlines()
+    assert len(lines) == 2 and "slope_deg=0" in lines[0] and lines[0].endswith("0.00: 6")
+    assert "slope_deg=5" in lines[1] and lines[1].endswith("0.00: -")
+    assert describe({}) == ""
