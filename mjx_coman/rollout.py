@@ -281,9 +281,9 @@ def n_ticks(spec: WalkSpec, control_period_s: float, save: SaveAt | None = None)
 
 
 def segment_ticks(total: int) -> int:
-    """The divisor of ``total`` nearest ``sqrt(total)`` (checkpointed segments of a walk without records)."""
-    divisors = [d for d in range(1, int(math.isqrt(total)) + 1) if total % d == 0]
-    return max(divisors) if divisors else 1
+    """The largest divisor of ``total`` not above ``sqrt(total)``: the length of the checkpointed segments of
+    a walk without records (a prime ``total`` gets segments of 1 tick: memory then grows with the ticks)."""
+    return max(d for d in range(1, math.isqrt(max(int(total), 1)) + 1) if total % d == 0)
 
 
 def check_walk(controller, config, env_params, joystick: Joystick | None = None, privileged_ok: bool = False) -> None:
