@@ -65,6 +65,7 @@ NU = len(JOINT_NAMES)
 JOINT_INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
 SEA_MASK = np.array([n in SEA_JOINTS for n in JOINT_NAMES])  # static structure
 MAX_DELAY_TICKS = 32  # static ring-buffer length is MAX_DELAY_TICKS + 1
+DELAY_S = 0.02  # the position plant's transport delay (make_actuator_params' default)
 MODE_POSITION, MODE_VOLTAGE, MODE_TORQUE = 0, 1, 2  # what a command's target is: motor angles, volts, link torques
 MODES = {"position": MODE_POSITION, "voltage": MODE_VOLTAGE, "torque": MODE_TORQUE}
 TORQUE_IDEAL, TORQUE_SEA = 0, 1
@@ -146,7 +147,7 @@ def make_actuator_params(
     spring_stiffness_nm_per_rad=390.0,
     spring_damping_nms_per_rad=0.5,
     kp_v_per_rad=None,
-    delay_s=0.02,
+    delay_s=DELAY_S,
     control_period_s=0.002,
     torque_loop="ideal",
     torque_bandwidth_hz=10.0,

@@ -54,12 +54,13 @@ def model_ids() -> dict:
     def geom(n):
         return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
 
-    from mjx_coman.mjcf import FOOT_CORNERS
+    from mjx_coman.mjcf import foot_contact_geoms
 
+    feet = tuple(geom(n) for n in foot_contact_geoms())  # right foot's four, then the left's
     return dict(
         n_robot_bodies=m.nbody,  # a scene variant's gravity frame is body n_robot_bodies (mjx_coman.mjcf.scene_xml)
-        r_foot_geoms=tuple(geom(f"r_foot_{c}_contact") for c in FOOT_CORNERS),
-        l_foot_geoms=tuple(geom(f"l_foot_{c}_contact") for c in FOOT_CORNERS),
+        r_foot_geoms=feet[:4],
+        l_foot_geoms=feet[4:],
         pelvis_body=body("Waist"),
         torso_body=body("DWYTorso"),
         r_ft_site=site("r_ft"),

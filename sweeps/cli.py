@@ -340,7 +340,7 @@ def _describe(summary: dict, out: Path) -> str:
         f"during step {summary['push_step']}: {summary['recovery_rate']:.1%} of {summary['rollouts']} rollouts recovered "
         f"({summary['fell']} fell, {summary['nan']} NaN)\n"
         f"largest recovered impulse (N s) per phase of the step"
-        + (" (every scenario's rows pooled; per scenario below)" if summary.get("per_scenario") else "")
+        + (" (recovered in every scenario; each scenario below)" if summary.get("per_scenario") else "")
         + f": {best}\n{verdict}\n"
         f"{summary['rollouts_run']} rollouts run in {summary['wall_s']:.1f} s (first chunk, with compilation, "
         f"{summary['first_chunk_s']:.1f} s"

@@ -232,9 +232,9 @@ class SweepConfig:
                                 "and its own run)")
             for v in values:
                 try:
-                    if a == "terrain" and Scenario(terrain=v).validate().terrain != v:
-                        raise ValueError(f"terrain {v!r} must be written {Scenario(terrain=v).validate().terrain!r}")
-                    Scenario(**{a: v}).validate()
+                    canonical = Scenario(**{a: v}).validate()
+                    if a == "terrain" and canonical.terrain != v:
+                        raise ValueError(f"terrain {v!r} must be written {canonical.terrain!r}")
                     if a == "delay_ms":  # on the MJX plant's 2 ms control tick (rechecked on the built env)
                         check_delay(v, nominal_delay_ticks(MJX_CONTROL_PERIOD_S), MJX_CONTROL_PERIOD_S)
                 except ValueError as e:

@@ -52,7 +52,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from mjx_coman.actuators import MAX_DELAY_TICKS
+from mjx_coman.actuators import DELAY_S, MAX_DELAY_TICKS
 from mjx_coman.env import EnvParams, batch_axes
 from mjx_coman.scenarios.terrain import parse_terrain, scene_model
 
@@ -160,12 +160,8 @@ def check_delay(delay_ms: float, base_ticks: int, control_period_s: float) -> in
 
 
 def nominal_delay_ticks(control_period_s: float) -> int:
-    """The plant's own transport delay in ticks (``make_actuator_params``'s default ``delay_s``; nothing built)."""
-    import inspect
-
-    from mjx_coman.actuators import make_actuator_params
-
-    return int(round(inspect.signature(make_actuator_params).parameters["delay_s"].default / float(control_period_s)))
+    """The position plant's own transport delay in ticks (:data:`mjx_coman.actuators.DELAY_S`; nothing built)."""
+    return int(round(DELAY_S / float(control_period_s)))
 
 
 def add_point_mass(mass_kg: float, ipos_m, iquat, inertia, payload_kg: float, offset_m):

@@ -10,7 +10,8 @@ the time-projection family), so the push, on the upper torso, starts at
 mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts
 ``first_step_s + n_steps step_time_s``. The environment is the controller's
 plant, :func:`mjx_coman.rollout.plant_env_params` (position control: the
-seed's gains with a stiffer ankle roll loop; or a torque plant). Falls and steps to recover are the simulator's
+seed's gains with a stiffer ankle roll loop; or a torque plant). Falls and
+steps to recover are the simulator's
 (:mod:`mjx_coman.ground_truth`); each rollout also records its touchdowns,
 mean speed and the limit cycle it ends in.
 
