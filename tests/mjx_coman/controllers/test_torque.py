@@ -1,15 +1,11 @@
-"""wbc-stand's own pieces: the IMU's complementary filter, the start-up ramp, its settings' checks.
-
-Its walks (ideal and series-elastic plants, a forward-mode gradient) are the contract test's torque batch.
-"""
+"""The torque-controlled families' shared pieces: the IMU's complementary filter and the start-up ramp."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_coman.controllers.wbc_stand.config import make_config
-from mjx_coman.controllers.wbc_stand.controller import filter_orientation, startup_ramp
+from mjx_coman.controllers.torque import filter_orientation, startup_ramp
 from mjx_coman.sensors import quat_mul
 
 DT = 0.002
@@ -63,10 +59,3 @@ def test_torques_ramp_in_over_the_start_up():
     np.testing.assert_allclose(ramp[:25], (np.arange(25) + 1) / 25, rtol=1e-6)  # linear over 0.05 s
     assert np.all(ramp[24:] == 1.0)
     assert float(startup_ramp(0.0, DT, 0.0)) == 1.0  # none: full torques from the first tick
-
-
-@pytest.mark.parametrize("kw, name", [(dict(startup_s=-0.1), "startup_s"), (dict(startup_s=2.0), "startup_s"),
-                                      (dict(imu_filter_s=-1.0), "imu_filter_s"), (dict(plant="position"), "plant")])
-def test_bad_settings_name_the_value(kw, name):
-    with pytest.raises(ValueError, match=name):
-        make_config(**kw)
