@@ -1,16 +1,20 @@
-"""What the torque-controlled families (``wbc-stand``, ``footstep-mpc``) share in a tick: the orientation
-filter, the start-up ramp of the torques, and the estimated floating base with its whole-body terms."""
+"""What the torque-controlled families (``wbc-stand``, ``footstep-mpc``) share: the crouched stance's references,
+the orientation filter, the start-up ramp of the torques, and the estimated floating base with its whole-body terms."""
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import mujoco
+import numpy as np
 
-from mjx_coman import dynamics, wbc
+from mjx_coman import dynamics, load_model, wbc
 from mjx_coman.actuators import make_actuator_params, torque_limits_nm
-from mjx_coman.floating_base import BaseState, estimate, nominal_model
+from mjx_coman.env import standing_posture
+from mjx_coman.floating_base import BaseState, estimate, nominal_model, sole_site_ids
 from mjx_coman.sensors import quat_mul
 
 UPPER = slice(12, 23)  # waist and arm joints (mjx_coman.actuators.JOINT_NAMES)
@@ -78,3 +82,20 @@ def whole_body(readings, quat, anchor_m, stance) -> Tick:
 def upper_body_acc(posture_rad, qpos, qvel, kp, kd):
     """Waist and arm accelerations held outside the QP (seed 001's fixed upper body): a joint PD to ``posture_rad``."""
     return wbc.joint_pd(posture_rad[UPPER], qpos[7:][UPPER], qvel[6:][UPPER], kp, kd)
+
+
+@functools.lru_cache(maxsize=4)
+def stance_references(knee_rad: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(posture (23,), CoM (3,), sole anchors (2, 3))`` of the crouched stance the env resets to (MuJoCo C).
+
+    The CoM's x-y is the mid-point of the sole sites (under the ankles); ``com_ahead_m`` moves it forward.
+    """
+    q, root = standing_posture(knee_rad)
+    m = load_model()
+    d = mujoco.MjData(m)
+    d.qpos[:7], d.qpos[7:] = root, q
+    mujoco.mj_forward(m, d)
+    soles = d.site_xpos[sole_site_ids()].copy()
+    com = np.array(d.subtree_com[1])
+    com[:2] = soles[:, :2].mean(axis=0)
+    return q, com, soles

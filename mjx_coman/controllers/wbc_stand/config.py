@@ -8,13 +8,10 @@ import math
 
 import jax
 import jax.numpy as jnp
-import mujoco
-import numpy as np
 
-from mjx_coman import load_model
 from mjx_coman.controllers.base import PLANTS, Setting
-from mjx_coman.env import MID_FOOT_AHEAD_M, standing_posture
-from mjx_coman.floating_base import sole_site_ids
+from mjx_coman.controllers.torque import stance_references
+from mjx_coman.env import MID_FOOT_AHEAD_M
 
 TUNABLE = ("imu_filter_s", "com_ahead_m", "com_kp_per_s2", "com_kd_per_s", "com_weight", "base_kp_per_s2", "base_kd_per_s", "base_weight",
            "posture_kp_per_s2", "posture_kd_per_s", "posture_weight", "qdd_weight", "force_weight_per_n2")
@@ -78,23 +75,6 @@ class Config:
 
     def replace(self, **kw) -> "Config":
         return dataclasses.replace(self, **kw)
-
-
-@functools.lru_cache(maxsize=4)
-def stance_references(knee_rad: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(posture (23,), CoM (3,), sole anchors (2, 3))`` of the crouched stance the env resets to (MuJoCo C).
-
-    The CoM's x-y is the mid-point of the sole sites (under the ankles); ``com_ahead_m`` moves it forward.
-    """
-    q, root = standing_posture(knee_rad)
-    m = load_model()
-    d = mujoco.MjData(m)
-    d.qpos[:7], d.qpos[7:] = root, q
-    mujoco.mj_forward(m, d)
-    soles = d.site_xpos[sole_site_ids()].copy()
-    com = np.array(d.subtree_com[1])
-    com[:2] = soles[:, :2].mean(axis=0)
-    return q, com, soles
 
 
 def make_config(knee_rad: float = 0.4, plant: str = "torque-ideal", fixed_upper_body: bool = False,
