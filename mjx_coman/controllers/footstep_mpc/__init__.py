@@ -1,0 +1,35 @@
+"""Footstep-predictive walking (seed 001) on the torque-controlled simulated COMAN: the family's ``CONTROLLER``.
+
+Three layers, each tick (seed 001, sec. II-IV): the footstep planner (:mod:`jaxlp.footsteps` on
+:mod:`jaxlp.lipm`: the LIPM step map from the measured CoM state and the MPC of eq. 16 over ``n_steps``
+footsteps), the trajectory layer (:mod:`.trajectory`: swing foot by Slerp and eq. 8, base yaw turned by the
+steering rate, CoM by eq. 3 with a height PD) and the whole-body QP (:mod:`mjx_coman.wbc`, eq. 2: stance sole
+in contact, swing foot, CoM above the base orientation, torque limits, friction and CoP at the feet's actual
+orientation). The robot's own sensors only (IMU, joint encoders; no contact sensing: fixed step timing).
+
+Modules: :mod:`.config` (settings, config pytree), :mod:`.trajectory`, :mod:`.controller` (``init``/``step``).
+
+Not registered yet: the controller does not walk yet (issue 17, in progress). On the ideal-torque plant the
+start shifts the CoM onto the right foot and step 0 swings the left foot, but a whole-body QP fails its
+float32 KKT check near 0.74 s and, with that check off, the state goes non-finite at the first stance switch
+(1.0 s). It is registered (``footstep-mpc``, ``-sea``, ``-full-body``) once it walks the contract's walk.
+
+"""
+
+from mjx_coman.controllers.base import Controller, Gait
+from mjx_coman.controllers.footstep_mpc import config as _config
+from mjx_coman.controllers.footstep_mpc import controller as _controller
+
+
+def gait(config: _config.Config) -> Gait:
+    return Gait(knee_rad=config.knee_rad, control_period_s=config.dt_s, first_step_s=config.start_s,
+                step_time_s=config.step_time_s, max_forward_mps=_config.MAX_FORWARD_MPS,
+                max_lateral_mps=_config.MAX_LATERAL_MPS, max_turn_rad_per_s=_config.MAX_TURN_RAD_PER_S,
+                plant=config.plant)
+
+
+CONTROLLER = Controller(
+    name="footstep-mpc", make_config=_config.make_config, init=_controller.init, step=_controller.step, gait=gait,
+    settings=_config.SETTINGS,
+    description="seed 001: LIPM footstep MPC with steering over the whole-body QP on the torque-controlled robot",
+)
