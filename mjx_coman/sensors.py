@@ -198,15 +198,15 @@ def backlash(prev_output: jax.Array, x: jax.Array, width: jax.Array) -> jax.Arra
 
 
 def quat_mul(a: jax.Array, b: jax.Array) -> jax.Array:
-    """Hamilton product of (w, x, y, z) quaternions."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
+    """Hamilton product of (w, x, y, z) quaternions (last axis; leading batch axes broadcast)."""
+    aw, ax, ay, az = (a[..., i] for i in range(4))
+    bw, bx, by, bz = (b[..., i] for i in range(4))
     return jnp.stack([
         aw * bw - ax * bx - ay * by - az * bz,
         aw * bx + ax * bw + ay * bz - az * by,
         aw * by - ax * bz + ay * bw + az * bx,
         aw * bz + ax * by - ay * bx + az * bw,
-    ])
+    ], axis=-1)
 
 
 def quat_to_rpy(q: jax.Array) -> jax.Array:

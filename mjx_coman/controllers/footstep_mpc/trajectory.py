@@ -24,6 +24,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from mjx_coman.sensors import quat_conj, quat_mul
 from mjx_coman.wbc.tasks import position_pd
 
 _SMALL = 1e-12  # squared norm below which log/exp use their series (no 0/0, finite gradients)
@@ -63,22 +64,6 @@ def blend(t_s, duration_s):
 # --- quaternions -----------------------------------------------------------------------------------------
 
 
-def _quat_mul(a, b):
-    """Hamilton product of (w, x, y, z) quaternions (leading batch axes allowed)."""
-    aw, ax, ay, az = (a[..., i] for i in range(4))
-    bw, bx, by, bz = (b[..., i] for i in range(4))
-    return jnp.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
-
-
-def _quat_conj(q):
-    return jnp.concatenate([q[..., :1], -q[..., 1:]], axis=-1)
-
-
 def quat_log(q):
     """Rotation vector ``theta u`` (rad) of the unit quaternion ``q``, taking ``q`` or ``-q`` whichever has
     ``w >= 0`` (the shorter arc, ``theta <= pi``); smooth at the identity."""
@@ -104,7 +89,7 @@ def quat_exp(r):
 
 def quat_delta(q0, q1):
     """World rotation vector ``log(q1 q0^-1)`` (shortest arc) taking orientation ``q0`` to ``q1``, rad."""
-    return quat_log(_quat_mul(q1, _quat_conj(q0)))
+    return quat_log(quat_mul(q1, quat_conj(q0)))
 
 
 def quat_slerp(q0, q1, s):
@@ -114,7 +99,7 @@ def quat_slerp(q0, q1, s):
     Safe (finite values and gradients) at ``q0 == q1``.
     """
     s = jnp.asarray(s)
-    return _quat_mul(quat_exp(s[..., None] * quat_delta(q0, q1)), q0)
+    return quat_mul(quat_exp(s[..., None] * quat_delta(q0, q1)), q0)
 
 
 def yaw_quat(yaw_rad):
@@ -132,7 +117,7 @@ def quat_yaw(q):
 
 def rotate_yaw(q, dyaw_rad):
     """``q`` rotated by ``dyaw_rad`` about the world z axis: ``yaw_quat(dyaw) q``."""
-    return _quat_mul(yaw_quat(dyaw_rad), q)
+    return quat_mul(yaw_quat(dyaw_rad), q)
 
 
 # --- references ------------------------------------------------------------------------------------------
@@ -170,7 +155,7 @@ def swing_foot_reference(t_s, duration_s, start_pos_m, target_xy_m, ground_z_m, 
         pos=start_pos_m + s * delta + h * lift,
         vel=sd * delta + hd * lift,
         acc=sdd * delta + hdd * lift,
-        quat=_quat_mul(quat_exp(s * r), start_quat),
+        quat=quat_mul(quat_exp(s * r), start_quat),
         ang_vel=sd * r,
         ang_acc=sdd * r,
     )
