@@ -96,9 +96,10 @@ def joystick_now(config: Config, joystick, time_s):
 
 
 def start_com_m(config: Config, time_s):
-    """``(position, velocity, acceleration)`` of the CoM during the start: over the feet's centre at the stance height, shifted by ``shift_m`` toward the
-    right foot along :func:`.trajectory.blend` (a CoM near the first stance foot at rest walks off into a
-    near-periodic first step; from the centre, the LIPM would need a 0.4 m first step)."""
+    """``(position, velocity, acceleration)`` of the CoM during the start: over the feet's centre at the
+    stance height, shifted by ``shift_m`` toward the right foot along :func:`.trajectory.blend` (a CoM near
+    the first stance foot at rest walks off into a near-periodic first step; from the centre, the LIPM would
+    need a 0.4 m first step)."""
     c = config
     f = c.com_ref_m.dtype
     centre = jnp.mean(c.sole_anchor_m[:, :2], axis=0) + jnp.stack([jnp.asarray(MID_FOOT_AHEAD_M, f), jnp.zeros((), f)])
