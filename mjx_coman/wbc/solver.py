@@ -49,9 +49,11 @@ from mjx_coman.wbc.tasks import Task
 # the KKT measure falls below 1e-9 in <= 10 iterations in float64, to ~2e-5 in ~8 in float32. In a
 # wbc-stand-sea walk float32 stalls at 2.5e-3 to 1.3e-2 on some ticks (12 or 25 iterations alike) while
 # the iterate is feasible to 2e-5 N: float32 accepts a KKT measure up to 5e-2 (a feasible point within a
-# few percent of stationarity, complementarity below 0.5 N m / 5 N); feasibility keeps its tolerances.
+# few percent of stationarity, complementarity below 0.5 N m / 5 N). In footstep-mpc walks single float32
+# ticks stall with a bound overshot by 4e-3 to 6e-3 N m (KKT 5e-3 to 8e-3), which ended the walk as a failed
+# solve: float32 accepts 2e-2 N m / N (0.06 % of the 33 N m stall torque; the actuator clips to its limits).
 TOLERANCES = {"float64": dict(max_iter=15, kkt=1e-8, eq=1e-6, ineq=1e-6),
-              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-3, ineq=1e-3)}
+              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-3, ineq=2e-2)}
 QPAX_TOL = 1e-12  # below qpax's floor: its flag is not the stopping test (solve_qp)
 
 
