@@ -9,10 +9,11 @@ orientation). The robot's own sensors only (IMU, joint encoders; no contact sens
 
 Modules: :mod:`.config` (settings, config pytree), :mod:`.trajectory`, :mod:`.controller` (``init``/``step``).
 
-Not registered yet: the controller does not walk yet (issue 17, in progress). On the ideal-torque plant the
-start shifts the CoM onto the right foot and step 0 swings the left foot, but a whole-body QP fails its
-float32 KKT check near 0.74 s and, with that check off, the state goes non-finite at the first stance switch
-(1.0 s). It is registered (``footstep-mpc``, ``-sea``, ``-full-body``) once it walks the contract's walk.
+Not registered yet: it does not yet walk what the contract and issue 17 ask (in progress). On the
+ideal-torque plant it walks in place for 8-10 s (drifting forward 0.06 m/s) and backward at -0.2 m/s for
+10 s (at -0.17 m/s, with ``mpc_com_step_weight=100``), but at +0.2 m/s it falls within 1.4-4.5 s: a landing
+foot chatters (the ankle's rate flips sign from tick to tick and grows) and a float32 QP then fails. It is
+registered (``footstep-mpc``, ``-sea``, ``-full-body``) once it walks the contract's walk and issue 17's.
 
 """
 

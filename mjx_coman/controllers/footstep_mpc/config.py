@@ -28,6 +28,8 @@ SETTINGS = (
     Setting("step_time_s", 0.4, "duration of one single-support step, s (the seed does not state it; "
             "seed 000's T on COMAN)"),
     Setting("start_s", 0.6, "double support at the start, shifting the CoM toward the first stance foot, s"),
+    Setting("double_support_s", 0.0, "the previous stance foot stays in contact this long into each step (the "
+            "load moves over in the QP), then lifts; its swing takes the rest of the step, s"),
     Setting("knee_rad", 0.4, "knee flexion of the crouched stance the walk starts from"),
     Setting("plant", "torque-ideal", "torque-ideal or torque-sea: how the torques reach the joints"),
     Setting("fixed_upper_body", True, "waist and arms held by a joint PD outside the QP (seed 001)"),
@@ -49,7 +51,7 @@ SETTINGS = (
     Setting("clearance_m", 0.04, "swing-foot apex above the ground (eq. 8, normalized), m", True, (0.0, 0.15)),
     Setting("com_height_kp_per_s2", 100.0, "CoM height PD stiffness, 1/s^2", True, (0.0, None)),
     Setting("com_height_kd_per_s", 20.0, "CoM height PD damping, 1/s", True, (0.0, None)),
-    Setting("com_weight", 10.0, "CoM task weight (larger than the base's: seed 001, sec. II)", True, (0.0, None)),
+    Setting("com_weight", 100.0, "CoM task weight (larger than the base's: seed 001, sec. II)", True, (0.0, None)),
     Setting("base_kp_per_s2", 100.0, "pelvis orientation stiffness, 1/s^2", True, (0.0, None)),
     Setting("base_kd_per_s", 20.0, "pelvis orientation damping, 1/s", True, (0.0, None)),
     Setting("base_weight", 1.0, "pelvis orientation weight", True, (0.0, None)),
@@ -72,7 +74,7 @@ SETTINGS = (
 @functools.partial(
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
-    meta_fields=["step_time_s", "start_s", "knee_rad", "plant", "fixed_upper_body", "friction_coeff", "startup_s",
+    meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body", "friction_coeff", "startup_s",
                  "n_steps", "mpc_solver", "joystick_ramp_s", "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
@@ -105,6 +107,7 @@ class Config:
     com_ref_m: jax.Array  # (3,) its CoM over the mid-ankles; z is the LIPM height z0 (soles at z = 0)
     sole_anchor_m: jax.Array  # (2, 3) right and left sole sites at the reset
     step_time_s: float
+    double_support_s: float
     start_s: float
     knee_rad: float
     plant: str
@@ -128,7 +131,7 @@ def _number(name, v, lo, hi, lo_open=False) -> float:
     return float(v)
 
 
-def make_config(step_time_s: float = 0.4, start_s: float = 0.6, knee_rad: float = 0.4, plant: str = "torque-ideal",
+def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4, plant: str = "torque-ideal",
                 fixed_upper_body: bool = True, friction_coeff: float = 0.7, startup_s: float = 0.05,
                 n_steps: int = 5, mpc_solver: str = "closed-form", joystick_ramp_s: float = 1.0,
                 **tunables) -> Config:
@@ -152,6 +155,7 @@ def make_config(step_time_s: float = 0.4, start_s: float = 0.6, knee_rad: float 
     dt = 0.002
     if abs(round(step_time_s / dt) * dt - step_time_s) > 1e-9:
         raise ValueError(f"step_time_s={step_time_s!r} must be a whole number of {dt:g} s control ticks")
+    double_support_s = _number("double_support_s", double_support_s, 0.0, step_time_s / 2)
     start_s = _number("start_s", start_s, 0.0, 5.0)
     knee_rad = _number("knee_rad", knee_rad, 0.1, 1.2)
     friction_coeff = _number("friction_coeff", friction_coeff, 0.0, 2.0, lo_open=True)
@@ -169,6 +173,6 @@ def make_config(step_time_s: float = 0.4, start_s: float = 0.6, knee_rad: float 
     q, com, soles = stance_references(knee_rad)
     return Config(**{k: jnp.asarray(v, f) for k, v in values.items()}, posture_rad=jnp.asarray(q, f),
                   com_ref_m=jnp.asarray(com, f), sole_anchor_m=jnp.asarray(soles, f), step_time_s=step_time_s,
-                  start_s=start_s, knee_rad=knee_rad, plant=plant, fixed_upper_body=fixed_upper_body,
-                  friction_coeff=friction_coeff, startup_s=startup_s, n_steps=n_steps, mpc_solver=mpc_solver,
-                  joystick_ramp_s=joystick_ramp_s)
+                  double_support_s=double_support_s, start_s=start_s, knee_rad=knee_rad, plant=plant,
+                  fixed_upper_body=fixed_upper_body, friction_coeff=friction_coeff, startup_s=startup_s,
+                  n_steps=n_steps, mpc_solver=mpc_solver, joystick_ramp_s=joystick_ramp_s)

@@ -6,7 +6,9 @@ estimate puts it and take the swing foot's lift-off pose; plan the footsteps fro
 (:mod:`jaxlp.footsteps`, eq. 12-16, so a push moves the next footstep within one tick); build the swing-foot,
 base and CoM references (:mod:`.trajectory`, eq. 3 and 8) and their PD accelerations; solve the whole-body QP
 (:mod:`mjx_coman.wbc`, eq. 2) with the stance sole in contact. Step ``k`` stands on the right foot when ``k``
-is even. Before step 0, a double support of ``start_s`` shifts the CoM toward the right foot.
+is even. Before step 0, a double support of ``start_s`` shifts the CoM toward the right foot; each step may
+keep the previous stance foot in contact for ``double_support_s`` before it swings. The QP's torque bounds
+are the stall torque (:func:`stall_torque_nm`); the actuator applies the voltage bound.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 from jaxlp import footsteps as fs
 from jaxlp import lipm
 from mjx_coman import wbc
+from mjx_coman.actuators import make_actuator_params, torque_limits_nm
 from mjx_coman.controllers import torque
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Telemetry
 from mjx_coman.controllers.footstep_mpc import trajectory as tr
@@ -62,6 +65,7 @@ class Extra(NamedTuple):
     mpc_ok: jax.Array
     heading_rad: jax.Array
     swing_error_m: jax.Array  # |swing sole - its reference|
+    com_acc_error_mps2: jax.Array  # (3,) the QP's CoM acceleration minus the reference's
 
 
 def init(config: Config, env_params, key) -> State:
@@ -159,7 +163,8 @@ def step(config: Config, state: State, obs):
     yaw_next = heading + turn * T
     target_sole = next_xy - _rot2(yaw_next) @ jnp.stack([jnp.asarray(MID_FOOT_AHEAD_M, f), jnp.zeros((), f)])
     ground_z = anchor[stance, 2]
-    ref = tr.swing_foot_reference(t_in, T, swing_start, target_sole, ground_z, c.clearance_m, swing_start_quat,
+    ds = c.double_support_s
+    ref = tr.swing_foot_reference(jnp.maximum(t_in - ds, 0.0), T - ds, swing_start, target_sole, ground_z, c.clearance_m, swing_start_quat,
                                   yaw_next)
     sole_vel = plant.sole_jac[swing] @ est.qvel  # (6,)
     swing_lin = wbc.position_pd(ref.pos, sole_pos[swing], ref.vel, sole_vel[:3], c.swing_kp_per_s2, c.swing_kd_per_s,
@@ -177,7 +182,8 @@ def step(config: Config, state: State, obs):
     com_acc = jnp.where(single, com_walk, com_start)
 
     # first layer: the whole-body QP (seed 001, eq. 2)
-    mask = jnp.where(single, jax.nn.one_hot(stance, 2, dtype=f), jnp.ones(2, f))
+    both = ~single | (t_in < ds)  # the start, and each step's double support
+    mask = jnp.where(both, jnp.ones(2, f), jax.nn.one_hot(stance, 2, dtype=f))
     swing_acc = jnp.concatenate([swing_lin, swing_ang])
     tasks = [wbc.com_task(plant, com_acc, c.com_weight),
              wbc.pelvis_orientation_task(plant, base_acc, c.base_weight),
@@ -191,7 +197,8 @@ def step(config: Config, state: State, obs):
     if c.fixed_upper_body:
         extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
             c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
-    qp = wbc.solve(plant, tasks, mask, tick.tau_min_nm, tick.tau_max_nm, friction_coeff=c.friction_coeff,
+    lo, hi = stall_torque_nm(tick.tau_min_nm)
+    qp = wbc.solve(plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff,
                    max_iter=WBC_MAX_ITER, **extra)
     tau_nm = torque.startup_ramp(obs.time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
 
@@ -208,10 +215,18 @@ def step(config: Config, state: State, obs):
         com_vel_mps=rel(plant.com_vel[:2]),
         extra=Extra(qp.info.iterations, qp.info.kkt_residual.astype(dtype), qp.info.eq_residual.astype(dtype),
                     qp.info.ineq_violation.astype(dtype), sol.ok, heading.astype(dtype),
-                    jnp.where(single, jnp.linalg.norm(ref.pos - sole_pos[swing]), 0.0).astype(dtype)),
+                    jnp.where(single, jnp.linalg.norm(ref.pos - sole_pos[swing]), 0.0).astype(dtype),
+                    (plant.com_jac @ qp.qdd + plant.com_bias_acc - com_acc).astype(dtype)),
         ok=qp.info.ok & sol.ok,
     )
     return state, Command(tau_nm, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32)), tel
+
+
+def stall_torque_nm(like):
+    """``(lo, hi)``: the QP's torque bounds, the motors' stall torque. The speed-dependent voltage bound is left to
+    the actuator: at a touchdown the landing leg's joint rates jump for a tick, and the voltage bound at those
+    rates excluded every torque that holds the new contact (the QP was infeasible)."""
+    return torque_limits_nm(make_actuator_params(), jnp.zeros_like(like))
 
 
 def _mpc_qp_solver(Q, q, A, b, G, h):
