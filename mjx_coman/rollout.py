@@ -401,8 +401,9 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
 
 
 def pelvis_and_com(state: RolloutState) -> dict:
-    """A save function: pelvis and CoM positions (world) and the common telemetry without ``extra``."""
+    """A save function: pelvis and CoM positions (world), pelvis yaw and the common telemetry without ``extra``."""
     return dict(pelvis_m=gt.pelvis_m(state.env.data), com_m=gt.com_m(state.env.data),
+                pelvis_yaw_rad=gt.pelvis_yaw_rad(state.env.data),
                 telemetry=state.telemetry._replace(extra=()))
 
 

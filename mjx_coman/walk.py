@@ -1,17 +1,20 @@
 """Command line: one walk of the simulated COMAN under any registered controller, optionally pushed.
 
-``python -m mjx_coman.walk [--controller time-projection] [--set KEY=VALUE ...] --speed 0.1 --seconds 10
-[--push-ns 4 --push-phase 0.5 --push-dir forward] [--push-step 5] [--seed 0] [--plot FILE.png] [--json]
+``python -m mjx_coman.walk [--controller time-projection] [--set KEY=VALUE ...] --speed 0.1 [--turn-rate 0.3]
+--seconds 10 [--push-ns 4 --push-phase 0.5 --push-dir forward|DEG] [--push-step 5] [--seed 0] [--plot FILE.png] [--json]
 [--payload-kg 1 --payload-body DWYTorso --payload-com-m -0.01,0,0] [--slope-deg 5] [--terrain rough:2|stairs:5|flat]
 [--imu-noise-deg 3] [--joint-noise-deg 1] [--delay-ms 10]``
 
 Runs the controller (:mod:`mjx_coman.controllers`; ``--set`` changes any of
 its settings) in the generic rollout (:func:`mjx_coman.rollout.walk`) for
 ``--seconds`` and prints whether it fell, its mean speed, its touchdowns and,
-with a push, the steps it took to recover, all measured on the simulator's
-ground truth (:mod:`mjx_coman.ground_truth`). The push is a force of
+with a push, the steps it took to recover, and the pelvis's heading change,
+all measured on the simulator's ground truth (:mod:`mjx_coman.ground_truth`).
+``--turn-rate`` commands a steering rate (rad/s, + to the left) to a
+controller that steers. The push is a force of
 ``--push-duration`` seconds (0.1 s by default) on the upper torso whose
-impulse is ``--push-ns`` N s, starting at phase ``--push-phase`` (0 to 1) of
+impulse is ``--push-ns`` N s (``--push-dir``: a name or an angle in degrees,
+counterclockwise from forward, world frame), starting at phase ``--push-phase`` (0 to 1) of
 walking step ``--push-step`` (0 is the controller's first walking step, after
 any start-up). ``--plot`` draws the pelvis path and the footsteps.
 
@@ -55,10 +58,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting of the controller (repeatable; see coman-sweep controllers)")
     p.add_argument("--speed", type=float, default=0.0, help="commanded walking speed, m/s (default 0: in place)")
+    p.add_argument("--turn-rate", type=float, default=0.0, help="commanded steering rate, rad/s (+ left)")
     p.add_argument("--seconds", type=float, default=10.0, help="duration of the walk, s")
     p.add_argument("--push-ns", type=float, default=0.0, help="push impulse, N s (0: no push)")
     p.add_argument("--push-phase", type=float, default=0.5, help="phase of the step where the push starts, [0, 1)")
-    p.add_argument("--push-dir", default="forward", metavar="{" + ",".join(DIRECTIONS) + "}",
+    p.add_argument("--push-dir", default="forward", metavar="{" + ",".join(DIRECTIONS) + "}|DEG",
                    help="push direction")
     p.add_argument("--push-step", type=int, default=5, help="index of the step (0 = first) that is pushed")
     p.add_argument("--push-duration", type=float, default=0.1, help="push duration, s")
@@ -126,8 +130,8 @@ def validate(args: argparse.Namespace) -> None:
     finite("--seconds", args.seconds)
     if not 0.0 < args.seconds <= MAX_SECONDS:
         raise ValueError(f"--seconds must lie in (0, {MAX_SECONDS:g}], got {args.seconds}")
-    if args.push_dir not in DIRECTIONS:
-        raise ValueError(f"--push-dir must be one of {', '.join(DIRECTIONS)}, got {args.push_dir!r}")
+    push_direction_rad(args.push_dir)
+    finite("--turn-rate", args.turn_rate)
     finite("--push-ns", args.push_ns)
     if args.push_ns < 0:
         raise ValueError(f"--push-ns must be non-negative (use --push-dir for the direction), got {args.push_ns}")
@@ -156,6 +160,11 @@ def validate(args: argparse.Namespace) -> None:
         gait.check_joystick(args.speed)
     except ValueError:
         raise ValueError(f"--speed {args.speed:g} is beyond {name}'s +-{gait.max_forward_mps:g} m/s") from None
+    try:
+        gait.check_joystick(0.0, 0.0, args.turn_rate)
+    except ValueError:
+        raise ValueError(f"--turn-rate {args.turn_rate:g} is beyond {name}'s +-{gait.max_turn_rad_per_s:g} rad/s "
+                         f"(0 for a controller that does not steer)") from None
     args.gait = gait
     args.scenario = scenario_from_args(args, gait.control_period_s)
     if args.push_ns > 0:
@@ -165,9 +174,30 @@ def validate(args: argparse.Namespace) -> None:
                              f"after the walk (--seconds {args.seconds:g})")
 
 
+def push_direction_rad(direction: str) -> float:
+    """The world-frame angle of ``--push-dir``: a name of :data:`DIRECTIONS` or degrees from forward (+ left).
+
+    Raises:
+        ValueError: neither a name nor a finite number.
+    """
+    if direction in DIRECTIONS:
+        return math.atan2(DIRECTIONS[direction][1], DIRECTIONS[direction][0])
+    try:
+        deg = float(direction)
+    except ValueError:
+        deg = math.nan
+    if not math.isfinite(deg):
+        raise ValueError(f"--push-dir must be one of {', '.join(DIRECTIONS)} or an angle in degrees, got {direction!r}")
+    return math.radians(deg)
+
+
 def push_force_n(impulse_ns: float, duration_s: float, direction: str) -> tuple[float, float, float]:
     """Constant world-frame torso force of a push of ``impulse_ns`` over ``duration_s`` in ``direction``."""
-    ux, uy = DIRECTIONS[direction]
+    if direction in DIRECTIONS:
+        ux, uy = DIRECTIONS[direction]
+    else:
+        a = push_direction_rad(direction)
+        ux, uy = math.cos(a), math.sin(a)
     f = impulse_ns / duration_s
     return (f * ux, f * uy, 0.0)
 
@@ -197,9 +227,10 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         start = None
         push = ro.no_push()
     save = ro.SaveAt(ro.pelvis_com_and_torque, every=10)
+    joystick = controllers.joystick(args.speed, turn_rad_per_s=args.turn_rate)
     t0 = time.perf_counter()
     fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=args.seconds, judge=judge), save, privileged_ok=args.privileged)
-    res = fn(config, env_params, push, jax.random.PRNGKey(args.seed), controllers.joystick(args.speed))
+    res = fn(config, env_params, push, jax.random.PRNGKey(args.seed), joystick)
     res = jax.tree_util.tree_map(np.asarray, res)
     wall = time.perf_counter() - t0
     fell = bool(res.fell)
@@ -217,8 +248,10 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
                                    f"velocity stays within {judge.recover_tol_mps:g} m/s of the limit cycle the walk "
                                    f"ends in ({judge.confirm_steps} steps in a row at least)"),
         "max_abs_footstep_adjustment_m": float(res.max_abs_footstep_adjustment_m),
+        "heading_change_rad": heading_change_rad(res),
         **stance_metrics(res, args.gait.plant),
         "speed_mps": args.speed,
+        "turn_rate_rad_per_s": args.turn_rate,
         "seconds": args.seconds,
         "push": None if args.push_ns <= 0 else {
             "impulse_ns": args.push_ns, "direction": args.push_dir, "step": args.push_step,
@@ -230,6 +263,16 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "wall_s": round(wall, 2),
     }
     return summary, res
+
+
+def heading_change_rad(res) -> float | None:
+    """Ground-truth pelvis yaw, unwrapped, from the first record to the last before any fall, rad (+ left)."""
+    import numpy as np
+
+    yaw = np.unwrap(np.asarray(res.saved["pelvis_yaw_rad"], np.float64))
+    t = np.asarray(res.time_s)
+    yaw = yaw[t <= float(res.fall_time_s)] if bool(res.fell) else yaw
+    return float(yaw[-1] - yaw[0]) if len(yaw) > 1 else None
 
 
 def stance_metrics(res, plant: str) -> dict:

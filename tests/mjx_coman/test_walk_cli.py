@@ -9,6 +9,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from mjx_coman import walk as cli
@@ -55,6 +56,9 @@ def no_build(monkeypatch):
         (["--push-phase", "-0.1"], "--push-phase"),
         (["--push-ns", "-3"], "--push-ns"),
         (["--push-dir", "up"], "up"),
+        (["--push-dir", "nan"], "--push-dir"),
+        (["--turn-rate", "0.3"], "--turn-rate"),  # time-projection does not steer
+        (["--turn-rate", "inf"], "--turn-rate"),
         (["--push-duration", "0"], "--push-duration"),
         (["--push-step", "-1"], "--push-step"),
         (["--push-ns", "4", "--push-step", "30", "--seconds", "2"], "--push-step"),
@@ -103,6 +107,26 @@ def test_push_force_is_the_impulse_over_the_duration():
     assert cli.push_force_n(2.0, 0.2, "backward") == pytest.approx((-10.0, 0.0, 0.0))
 
 
+def test_heading_change_is_unwrapped_and_stops_at_a_fall():
+    from types import SimpleNamespace
+
+    t = np.arange(1, 101) * 0.02
+    yaw = np.angle(np.exp(1j * 0.5 * t))  # 0.5 rad/s, wrapped to (-pi, pi] after 2 pi
+    t_long = np.arange(1, 1001) * 0.02
+    yaw_long = np.angle(np.exp(1j * 0.5 * t_long))
+    res = SimpleNamespace(saved={"pelvis_yaw_rad": yaw_long}, time_s=t_long, fell=False, fall_time_s=np.inf)
+    assert cli.heading_change_rad(res) == pytest.approx(0.5 * (t_long[-1] - t_long[0]), rel=1e-6)
+    fell = SimpleNamespace(saved={"pelvis_yaw_rad": yaw}, time_s=t, fell=True, fall_time_s=1.0)
+    assert cli.heading_change_rad(fell) == pytest.approx(0.5 * (1.0 - t[0]), rel=1e-6)
+
+
+def test_push_direction_in_degrees_matches_the_names():
+    for name, deg in (("forward", "0"), ("left", "90"), ("backward", "180"), ("right", "-90")):
+        assert cli.push_force_n(3.0, 0.3, deg) == pytest.approx(cli.push_force_n(3.0, 0.3, name), abs=1e-12)
+    fx, fy, _ = cli.push_force_n(3.0, 0.3, "45")
+    assert fx == pytest.approx(10.0 / 2**0.5) and fy == pytest.approx(10.0 / 2**0.5)
+
+
 @pytest.fixture(scope="module")
 def short_walk(tmp_path_factory):
     png = tmp_path_factory.mktemp("walk") / "walk.png"
@@ -118,12 +142,13 @@ def short_walk(tmp_path_factory):
 def test_short_walk_reports_ground_truth_and_stays_up(short_walk):
     report, png = short_walk
     for key in ("controller", "settings", "fell", "mean_speed_mps", "touchdowns", "steps_to_recover",
-                "max_abs_footstep_adjustment_m", "nan", "push"):
+                "max_abs_footstep_adjustment_m", "nan", "push", "heading_change_rad"):
         assert key in report
     assert report["controller"] == "time-projection" and report["settings"] == {"hip_attack": 0.7}
     assert report["fell"] is False and report["nan"] is False
     assert report["touchdowns"] >= 8  # 4 s: the start-up phase, then a touchdown every 0.4 s
     assert abs(report["mean_speed_mps"]) < 0.15  # in place
+    assert abs(report["heading_change_rad"]) < 0.2 and report["turn_rate_rad_per_s"] == 0.0  # no steering
     assert report["push"]["start_s"] == pytest.approx((1 + 1 + 0.35) * 0.4)
     s2r = report["steps_to_recover"]
     assert s2r is None or 1 <= s2r <= report["touchdowns"]  # ground truth: touchdowns after the push ends
