@@ -22,7 +22,7 @@ TUNABLE = ("mpc_com_midpoint_weight", "mpc_com_step_weight", "mpc_footstep_weigh
            "half_width_m", "clearance_m", "com_height_kp_per_s2", "com_height_kd_per_s", "com_weight",
            "base_kp_per_s2", "base_kd_per_s", "base_weight", "swing_kp_per_s2", "swing_kd_per_s", "swing_weight",
            "posture_kp_per_s2", "posture_kd_per_s", "posture_weight", "qdd_weight", "force_weight_per_n2",
-           "imu_filter_s", "shift_m")
+           "imu_filter_s", "shift_m", "touchdown_depth_m")
 
 SETTINGS = (
     Setting("step_time_s", 0.4, "duration of one single-support step, s (the seed does not state it; "
@@ -40,6 +40,7 @@ SETTINGS = (
             "friction bound |mu z0| on the CoM-to-foot distance)"),
     Setting("joystick_ramp_s", 1.0, "the joystick's velocities ramp in linearly over this time, s (seed 001, "
             "Fig. 4: about 3 s)"),
+    Setting("shift_m", 0.055, "CoM shift toward the first stance foot during the start, m", True, (0.0, 0.1)),
     Setting("mpc_com_midpoint_weight", 1.0, "Q_q of seed 001 eq. 16: step-average CoM on the midpoint path, 1/m^2",
             True, (0.0, None)),
     Setting("mpc_com_step_weight", 10.0, "Q_dq: CoM advance per step, 1/m^2", True, (0.0, None)),
@@ -49,6 +50,8 @@ SETTINGS = (
     Setting("half_width_m", 0.08, "d of seed 001 eq. 14-15: half the lateral distance of the feet, m", True,
             (0.05, 0.15)),
     Setting("clearance_m", 0.04, "swing-foot apex above the ground (eq. 8, normalized), m", True, (0.0, 0.15)),
+    Setting("touchdown_depth_m", 0.01, "the swing foot's path ends this far below the ground: it lands before the "
+            "fixed-time switch instead of hanging above the ground when the QP starts to load it, m", True, (0.0, 0.03)),
     Setting("com_height_kp_per_s2", 100.0, "CoM height PD stiffness, 1/s^2", True, (0.0, None)),
     Setting("com_height_kd_per_s", 20.0, "CoM height PD damping, 1/s", True, (0.0, None)),
     Setting("com_weight", 100.0, "CoM task weight (larger than the base's: seed 001, sec. II)", True, (0.0, None)),
@@ -67,7 +70,6 @@ SETTINGS = (
             (0.0, None)),
     Setting("imu_filter_s", 0.05, "time constant of the IMU's complementary filter, s (0: raw IMU)", True,
             (0.0, None)),
-    Setting("shift_m", 0.055, "CoM shift toward the first stance foot during the start, m", True, (0.0, 0.1)),
 )
 
 
@@ -103,6 +105,7 @@ class Config:
     force_weight_per_n2: jax.Array
     imu_filter_s: jax.Array
     shift_m: jax.Array
+    touchdown_depth_m: jax.Array
     posture_rad: jax.Array  # (23,) the crouched stance
     com_ref_m: jax.Array  # (3,) its CoM over the mid-ankles; z is the LIPM height z0 (soles at z = 0)
     sole_anchor_m: jax.Array  # (2, 3) right and left sole sites at the reset

@@ -164,7 +164,8 @@ def step(config: Config, state: State, obs):
     target_sole = next_xy - _rot2(yaw_next) @ jnp.stack([jnp.asarray(MID_FOOT_AHEAD_M, f), jnp.zeros((), f)])
     ground_z = anchor[stance, 2]
     ds = c.double_support_s
-    ref = tr.swing_foot_reference(jnp.maximum(t_in - ds, 0.0), T - ds, swing_start, target_sole, ground_z, c.clearance_m, swing_start_quat,
+    ref = tr.swing_foot_reference(jnp.maximum(t_in - ds, 0.0), T - ds, swing_start, target_sole,
+                                  ground_z - c.touchdown_depth_m, c.clearance_m, swing_start_quat,
                                   yaw_next)
     sole_vel = plant.sole_jac[swing] @ est.qvel  # (6,)
     swing_lin = wbc.position_pd(ref.pos, sole_pos[swing], ref.vel, sole_vel[:3], c.swing_kp_per_s2, c.swing_kd_per_s,
