@@ -2,8 +2,8 @@
 
 Under pytest-xdist (``-n 2 --dist loadgroup``, the README's test command) each test module is one group, so
 its module-scoped fixtures are built once; modules that share a session-scoped compilation share a group:
-the shared walk of every position-controlled controller (``tests/mjx_coman/conftest.py``; the torque-controlled
-ones share another), and the subprocesses that share JAX's
+the shared walk of every position-controlled controller (``tests/mjx_coman/conftest.py``; each torque-controlled
+family has its own), and the subprocesses that share JAX's
 persistent compilation cache (the walk command line and notebook 03).
 """
 
@@ -26,9 +26,17 @@ def pytest_collection_modifyitems(config, items):
         if item.get_closest_marker("xdist_group") is None:
             name = item.path.name
             group = group_of.get(name, str(item.path.relative_to(config.rootpath)))
-            if group == "walks" and _torque_controlled(getattr(getattr(item, "callspec", None), "params", {}).get("name")):
-                group = "torque-walks"  # the torque-controlled families' batch compiles apart: another worker
+            name = getattr(getattr(item, "callspec", None), "params", {}).get("name")
+            if group == "walks" and _torque_controlled(name):
+                group = f"torque-walks-{_family_of(name)}"  # each torque family's batch compiles apart
             item.add_marker(pytest.mark.xdist_group(group))
+
+
+def _family_of(name) -> str:
+    from mjx_coman import controllers
+
+    core = controllers.get(name).core()
+    return next(n for n in controllers.names() if controllers.get(n).core() == core)
 
 
 def _torque_controlled(name) -> bool:

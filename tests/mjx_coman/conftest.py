@@ -44,7 +44,7 @@ def stand_run(env_params, reset_state, standing_q):
 
 WALK_S = 2.4  # a start-up phase and five steps of the time-projection gait
 WALK_ROWS = 16
-TORQUE_WALK_ROWS = 4  # the gradient check's three rows and the series-elastic variant, unpushed
+TORQUE_WALK_ROWS = 4  # per family: the gradient check's three rows and the series-elastic variant, unpushed
 TORQUE_WALK_S = 1.0  # a QP a tick (with its tangent): the torque batch walks shorter
 GRAD_WINDOW_S = 0.3  # the cost of the gradient check: the controller's own start, before any step
 PUSH_START_S = (1 + 1 + 0.375) * 0.4  # walking step 1 of the time-projection gait, 3/8 through
@@ -194,10 +194,27 @@ def shared_walks(walking_env):
     return _batch(_families(), WALK_ROWS, WALK_S, walking_env)
 
 
+def family_of(name) -> str:
+    """The first registered name of ``name``'s family (its representative)."""
+    from mjx_coman import controllers
+
+    core = controllers.get(name).core()
+    return next(n for n in controllers.names() if controllers.get(n).core() == core)
+
+
 @pytest.fixture(scope="session")
 def torque_walks():
-    """The batch of every torque-controlled family, each row on its own plant (one compilation)."""
-    return _batch(_families(torque=True), TORQUE_WALK_ROWS, TORQUE_WALK_S, pushed=False)
+    """``torque_walks(rep)``: the batch of one torque-controlled family, each row on its own plant (one
+    compilation per family, not a bundle: every row would run every family's QP)."""
+    cache = {}
+
+    def get(rep):
+        if rep not in cache:
+            fams = [f for f in _families(torque=True) if f[0] == rep]
+            cache[rep] = _batch(fams, TORQUE_WALK_ROWS, TORQUE_WALK_S, pushed=False)
+        return cache[rep]
+
+    return get
 
 
 class FamilyBatch(NamedTuple):
@@ -220,8 +237,10 @@ def family_walks(request):
     from mjx_coman import controllers
 
     def get(name):
-        rows, res, cost, dcost, probes = request.getfixturevalue(
-            "torque_walks" if torque_controlled(name) else "shared_walks")
+        if torque_controlled(name):
+            rows, res, cost, dcost, probes = request.getfixturevalue("torque_walks")(family_of(name))
+        else:
+            rows, res, cost, dcost, probes = request.getfixturevalue("shared_walks")
         core = controllers.get(name).core()
         member, rep = next((j, r) for j, r in enumerate(probes) if controllers.get(r).core() == core)
         i0 = next(i for i, (n, p, _, d) in enumerate(rows) if n == rep and p is None and d == 0.0)

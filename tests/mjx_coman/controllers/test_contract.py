@@ -1,8 +1,8 @@
 """The controller contract, over every registered name: a new controller passes it or is not registered.
 
-Every name runs in one shared batch (``shared_walks`` in ``tests/mjx_coman/conftest.py``: the families
-bundled into one compiled, vmapped, forward-differentiated walk; the torque-controlled ones in a second,
-``torque_walks``, each row on its plant). Checked per name: ``init`` and ``step`` jit and vmap over a
+Every position-controlled name runs in one shared batch (``shared_walks`` in ``tests/mjx_coman/conftest.py``: the
+families bundled into one compiled, vmapped, forward-differentiated walk); each torque-controlled family in its
+own (``torque_walks``, each row on its plant). Checked per name: ``init`` and ``step`` jit and vmap over a
 batch of 4; a walk of 2.4 s (1 s in the torque batch) from the controller's own start without a fall; every
 output finite; the telemetry as declared; and, per family, the forward-mode derivative of a short
 rollout cost (the mean horizontal CoM over the first 0.3 s) with respect to one tunable (the first
