@@ -186,3 +186,5 @@ register("wbc-stand", "mjx_coman.controllers.wbc_stand", "stands by the whole-bo
          walking=False)
 register("wbc-stand-sea", "mjx_coman.controllers.wbc_stand", "wbc-stand through the series-elastic torque loop",
          walking=False, plant="torque-sea")
+_FM = "mjx_coman.controllers.footstep_mpc"
+register("footstep-mpc", _FM, "seed 001: LIPM footstep MPC with steering over the whole-body QP, ideal torques")

@@ -59,6 +59,8 @@ def no_build(monkeypatch):
         (["--push-dir", "nan"], "--push-dir"),
         (["--turn-rate", "0.3"], "--turn-rate"),  # time-projection does not steer
         (["--turn-rate", "inf"], "--turn-rate"),
+        (["--controller", "footstep-mpc", "--turn-rate", "0.7"], "--turn-rate"),  # beyond its 0.6 rad/s
+        (["--controller", "footstep-mpc", "--speed", "0.5"], "--speed"),  # beyond seed 001's 0.4 m/s
         (["--push-duration", "0"], "--push-duration"),
         (["--push-step", "-1"], "--push-step"),
         (["--push-ns", "4", "--push-step", "30", "--seconds", "2"], "--push-step"),

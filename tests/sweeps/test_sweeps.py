@@ -241,7 +241,7 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
     # a grid option without --preset: one map into --out with the base defaults
     (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
     (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],
-     [(c, "mjx", 4, 256) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr")]),
+     [(c, "mjx", 4, 256) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc")]),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
      [("", "mjx", 2 * 41, 256)]),
     # scenario axes: batched ones multiply the grid; each terrain is its own run (a scene)

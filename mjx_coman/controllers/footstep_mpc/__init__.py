@@ -9,11 +9,10 @@ orientation). The robot's own sensors only (IMU, joint encoders; no contact sens
 
 Modules: :mod:`.config` (settings, config pytree), :mod:`.trajectory`, :mod:`.controller` (``init``/``step``).
 
-Not registered yet: it does not yet walk what the contract and issue 17 ask (in progress). On the
-ideal-torque plant it walks in place for 8-10 s (drifting forward 0.06 m/s) and backward at -0.2 m/s for
-10 s (at -0.17 m/s, with ``mpc_com_step_weight=100``), but at +0.2 m/s it falls within 1.4-4.5 s: a landing
-foot chatters (the ankle's rate flips sign from tick to tick and grows) and a float32 QP then fails. It is
-registered (``footstep-mpc``, ``-sea``, ``-full-body``) once it walks the contract's walk and issue 17's.
+Registered as ``footstep-mpc`` (ideal-torque plant, fixed upper body). ``--set plant=torque-sea`` and
+``--set fixed_upper_body=false`` select the series-elastic loop and the free upper body; neither is registered as a
+variant yet (the series-elastic walk falls within the contract's first second; the free upper body is a second
+compiled QP for the contract's batch).
 
 """
 
