@@ -52,8 +52,10 @@ from mjx_coman.wbc.tasks import Task
 # few percent of stationarity, complementarity below 0.5 N m / 5 N). In footstep-mpc walks single float32
 # ticks stall with a bound overshot by 4e-3 to 6e-3 N m (KKT 5e-3 to 8e-3), which ended the walk as a failed
 # solve: float32 accepts 2e-2 N m / N (0.06 % of the 33 N m stall torque; the actuator clips to its limits).
+# Likewise one tick of a 0.2 m/s walk failed with a dynamics residual of 1.34e-3 N (KKT 3.5e-6), float32
+# round-off on ~300 N of contact force: float32 accepts equality residuals up to 1e-2.
 TOLERANCES = {"float64": dict(max_iter=15, kkt=1e-8, eq=1e-6, ineq=1e-6),
-              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-3, ineq=2e-2)}
+              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-2, ineq=2e-2)}
 QPAX_TOL = 1e-12  # below qpax's floor: its flag is not the stopping test (solve_qp)
 
 

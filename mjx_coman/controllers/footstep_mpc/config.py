@@ -50,7 +50,7 @@ SETTINGS = (
     Setting("half_width_m", 0.08, "d of seed 001 eq. 14-15: half the lateral distance of the feet, m", True,
             (0.05, 0.15)),
     Setting("clearance_m", 0.04, "swing-foot apex above the ground (eq. 8, normalized), m", True, (0.0, 0.15)),
-    Setting("touchdown_depth_m", 0.01, "the swing foot's path ends this far below the ground: it lands before the "
+    Setting("touchdown_depth_m", 0.005, "the swing foot's path ends this far below the ground: it lands before the "
             "fixed-time switch instead of hanging above the ground when the QP starts to load it, m", True, (0.0, 0.03)),
     Setting("com_height_kp_per_s2", 100.0, "CoM height PD stiffness, 1/s^2", True, (0.0, None)),
     Setting("com_height_kd_per_s", 20.0, "CoM height PD damping, 1/s", True, (0.0, None)),
