@@ -130,7 +130,7 @@ def validate(args: argparse.Namespace) -> None:
     finite("--seconds", args.seconds)
     if not 0.0 < args.seconds <= MAX_SECONDS:
         raise ValueError(f"--seconds must lie in (0, {MAX_SECONDS:g}], got {args.seconds}")
-    push_direction_rad(args.push_dir)
+    push_unit(args.push_dir)
     finite("--turn-rate", args.turn_rate)
     finite("--push-ns", args.push_ns)
     if args.push_ns < 0:
@@ -174,30 +174,27 @@ def validate(args: argparse.Namespace) -> None:
                              f"after the walk (--seconds {args.seconds:g})")
 
 
-def push_direction_rad(direction: str) -> float:
-    """The world-frame angle of ``--push-dir``: a name of :data:`DIRECTIONS` or degrees from forward (+ left).
+def push_unit(direction: str) -> tuple[float, float]:
+    """The world-frame unit vector of ``--push-dir``: a name of :data:`DIRECTIONS` (exact) or degrees from
+    forward (+ left).
 
     Raises:
         ValueError: neither a name nor a finite number.
     """
     if direction in DIRECTIONS:
-        return math.atan2(DIRECTIONS[direction][1], DIRECTIONS[direction][0])
+        return DIRECTIONS[direction]
     try:
         deg = float(direction)
     except ValueError:
         deg = math.nan
     if not math.isfinite(deg):
         raise ValueError(f"--push-dir must be one of {', '.join(DIRECTIONS)} or an angle in degrees, got {direction!r}")
-    return math.radians(deg)
+    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
 
 
 def push_force_n(impulse_ns: float, duration_s: float, direction: str) -> tuple[float, float, float]:
     """Constant world-frame torso force of a push of ``impulse_ns`` over ``duration_s`` in ``direction``."""
-    if direction in DIRECTIONS:
-        ux, uy = DIRECTIONS[direction]
-    else:
-        a = push_direction_rad(direction)
-        ux, uy = math.cos(a), math.sin(a)
+    ux, uy = push_unit(direction)
     f = impulse_ns / duration_s
     return (f * ux, f * uy, 0.0)
 

@@ -51,7 +51,8 @@ SETTINGS = (
             (0.05, 0.15)),
     Setting("clearance_m", 0.04, "swing-foot apex above the ground (eq. 8, normalized), m", True, (0.0, 0.15)),
     Setting("touchdown_depth_m", 0.005, "the swing foot's path ends this far below the ground: it lands before the "
-            "fixed-time switch instead of hanging above the ground when the QP starts to load it, m", True, (0.0, 0.03)),
+            "fixed-time switch instead of hanging above the ground when the QP starts to load it, m", True,
+            (0.0, 0.03)),
     Setting("com_height_kp_per_s2", 100.0, "CoM height PD stiffness, 1/s^2", True, (0.0, None)),
     Setting("com_height_kd_per_s", 20.0, "CoM height PD damping, 1/s", True, (0.0, None)),
     Setting("com_weight", 100.0, "CoM task weight (larger than the base's: seed 001, sec. II)", True, (0.0, None)),
@@ -76,8 +77,8 @@ SETTINGS = (
 @functools.partial(
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
-    meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body", "friction_coeff", "startup_s",
-                 "n_steps", "mpc_solver", "joystick_ramp_s", "dt_s"],
+    meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body",
+                 "friction_coeff", "startup_s", "n_steps", "mpc_solver", "joystick_ramp_s", "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
 class Config:
@@ -134,10 +135,10 @@ def _number(name, v, lo, hi, lo_open=False) -> float:
     return float(v)
 
 
-def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4, plant: str = "torque-ideal",
-                fixed_upper_body: bool = True, friction_coeff: float = 0.7, startup_s: float = 0.05,
-                n_steps: int = 5, mpc_solver: str = "closed-form", joystick_ramp_s: float = 1.0,
-                **tunables) -> Config:
+def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4,
+                plant: str = "torque-ideal", fixed_upper_body: bool = True, friction_coeff: float = 0.7,
+                startup_s: float = 0.05, n_steps: int = 5, mpc_solver: str = "closed-form",
+                joystick_ramp_s: float = 1.0, **tunables) -> Config:
     """A validated config (host).
 
     Raises:

@@ -224,8 +224,8 @@ def step(config: Config, state: State, obs):
 
 
 def stall_torque_nm(like):
-    """``(lo, hi)``: the QP's torque bounds, the motors' stall torque. The speed-dependent voltage bound is left to
-    the actuator: at a touchdown the landing leg's joint rates jump for a tick, and the voltage bound at those
+    """``(lo, hi)``: the QP's torque bounds, the motors' stall torque. The speed-dependent voltage bound is left
+    to the actuator: at a touchdown the landing leg's joint rates jump for a tick, and the voltage bound at those
     rates excluded every torque that holds the new contact (the QP was infeasible)."""
     return torque_limits_nm(make_actuator_params(), jnp.zeros_like(like))
 
