@@ -44,7 +44,8 @@ def stand_run(env_params, reset_state, standing_q):
 
 WALK_S = 2.4  # a start-up phase and five steps of the time-projection gait
 WALK_ROWS = 16
-TORQUE_WALK_ROWS = 4  # per family: the gradient check's three rows and the series-elastic variant, unpushed
+TORQUE_WALK_ROWS = 2  # per family: its unpushed walk and a variant's (the series-elastic one)
+TORQUE_GRAD_ROWS = 4  # the gradient check's three rows (slow: a second, forward-differentiated compilation)
 TORQUE_WALK_S = 1.0  # a QP a tick (with its tangent): the torque batch walks shorter
 GRAD_WINDOW_S = 0.3  # the cost of the gradient check: the controller's own start, before any step
 PUSH_START_S = (1 + 1 + 0.375) * 0.4  # walking step 1 of the time-projection gait, 3/8 through
@@ -100,8 +101,9 @@ def _families(torque: bool = False):
     return [(rep, ms) for rep, ms in out if torque_controlled(rep) == torque]
 
 
-def _rows(fams, pushed: bool = True):
-    """Per family: the probe, its step h, and rows ``(name, push, seed, delta)``; all rows in one list."""
+def _rows(fams, pushed: bool = True, gradient: bool = True):
+    """Per family: the probe, its step h, and rows ``(name, push, seed, delta)``; all rows in one list
+    (``gradient=False``: without the +-h rows)."""
     from mjx_coman import controllers, rollout as ro
 
     back = ro.make_push(PUSH_START_S, 0.1, impulse_ns=5.0, direction_rad=np.pi)
@@ -111,7 +113,7 @@ def _rows(fams, pushed: bool = True):
         probe = probe_setting(controllers.get(rep))
         h = 0.05 * abs(float(controllers.get(rep).defaults()[probe]))
         probes[rep] = (probe, h)
-        rows += [(rep, None, 0, 0.0), (rep, None, 0, h), (rep, None, 0, -h)]
+        rows += [(rep, None, 0, 0.0)] + ([(rep, None, 0, h), (rep, None, 0, -h)] if gradient else [])
         rows += [(rep, back, 7, 0.0), (rep, absurd, 7, 0.0)] if pushed else []
         rows += [(m, None, 1, 0.0) for m in members[1:]]
         rows += [(m, back, 7, 0.0) for m in members[1:] if m == "open-loop"]  # the push it cannot take
@@ -125,8 +127,10 @@ def walking_env():
     return walking_env_params()
 
 
-def _batch(fams, n_rows, seconds, shared_env=None, pushed=True):
+def _batch(fams, n_rows, seconds, shared_env=None, pushed=True, gradient=True):
     """``(rows, results, cost, dcost, probes)`` of one bundled batch (compiled and run once).
+
+    ``gradient=False``: no +-h rows and no forward-mode derivative (``dcost`` is ``None``).
 
     ``shared_env``: every row's environment; ``None``: each row gets its controller's plant
     (:func:`mjx_coman.rollout.plant_env_params`), vmapped over the rows.
@@ -137,7 +141,7 @@ def _batch(fams, n_rows, seconds, shared_env=None, pushed=True):
     reps = [rep for rep, _ in fams]
     member_of = {m: i for i, (_, ms) in enumerate(fams) for m in ms}
     both = bundle([controllers.get(r) for r in reps]) if len(reps) > 1 else None
-    rows, probes = _rows(fams, pushed)
+    rows, probes = _rows(fams, pushed, gradient)
     assert len(rows) <= n_rows, len(rows)
     rows = rows + [rows[0]] * (n_rows - len(rows))  # one batch size
     defaults = [controllers.default_config(r) for r in reps]
@@ -181,6 +185,9 @@ def _batch(fams, n_rows, seconds, shared_env=None, pushed=True):
                      in_axes=(0, env_axes, 0, 0))(cfg, envs, pushes, keys)
         return r, grad_cost(r.saved)
 
+    if not gradient:
+        res, cost = jax.jit(batch)(stack(configs))
+        return rows, jax.tree_util.tree_map(np.asarray, res), np.asarray(cost), None, probes
     tangent = stack(tangents)
     if both is not None:
         tangent = tangent.replace(index=np.zeros(n_rows, jax.dtypes.float0))
@@ -204,15 +211,17 @@ def family_of(name) -> str:
 
 @pytest.fixture(scope="session")
 def torque_walks():
-    """``torque_walks(rep)``: the batch of one torque-controlled family, each row on its own plant (one
-    compilation per family, not a bundle: every row would run every family's QP)."""
+    """``torque_walks(rep, gradient=False)``: the batch of one torque-controlled family, each row on its own
+    plant (one compilation per family, not a bundle: every row would run every family's QP); ``gradient``:
+    the gradient check's batch (forward-differentiated: slow tests only)."""
     cache = {}
 
-    def get(rep):
-        if rep not in cache:
+    def get(rep, gradient=False):
+        if (rep, gradient) not in cache:
             fams = [f for f in _families(torque=True) if f[0] == rep]
-            cache[rep] = _batch(fams, TORQUE_WALK_ROWS, TORQUE_WALK_S, pushed=False)
-        return cache[rep]
+            cache[rep, gradient] = _batch(fams, TORQUE_GRAD_ROWS if gradient else TORQUE_WALK_ROWS, TORQUE_WALK_S,
+                                          pushed=False, gradient=gradient)
+        return cache[rep, gradient]
 
     return get
 
@@ -233,12 +242,13 @@ class FamilyBatch(NamedTuple):
 
 @pytest.fixture(scope="session")
 def family_walks(request):
-    """``family_walks(name) -> FamilyBatch`` of the shared batch (position or torque) of ``name``'s family."""
+    """``family_walks(name, gradient=False) -> FamilyBatch`` of the shared batch (position or torque) of
+    ``name``'s family (``gradient``: with the gradient check's rows, a second batch for a torque family)."""
     from mjx_coman import controllers
 
-    def get(name):
+    def get(name, gradient=False):
         if torque_controlled(name):
-            rows, res, cost, dcost, probes = request.getfixturevalue("torque_walks")(family_of(name))
+            rows, res, cost, dcost, probes = request.getfixturevalue("torque_walks")(family_of(name), gradient)
         else:
             rows, res, cost, dcost, probes = request.getfixturevalue("shared_walks")
         core = controllers.get(name).core()

@@ -6,7 +6,9 @@ own (``torque_walks``, each row on its plant). Checked per name: ``init`` and ``
 batch of 4; a walk of 2.4 s (1 s in the torque batch) from the controller's own start without a fall; every
 output finite; the telemetry as declared; and, per family, the forward-mode derivative of a short
 rollout cost (the mean horizontal CoM over the first 0.3 s) with respect to one tunable (the first
-scalar one with a nonzero default) against central differences of +-5 %: within 5 % (float32).
+scalar one with a nonzero default) against central differences of +-5 %: within 5 % (float32). A torque
+family's derivative is a second compilation of its batch (a QP a tick, forward-differentiated: about 2 min
+on 2 cores), so its gradient check is ``slow``.
 """
 
 from __future__ import annotations
@@ -81,9 +83,13 @@ def test_walks_from_its_own_start_without_falling(name, family_walks):
     assert np.all(one.saved["pelvis_m"][:, 2] > 0.4)  # upright the whole time
 
 
-@pytest.mark.parametrize("name", FAMILIES)
+def _torque(name) -> bool:
+    return controllers.get(name).gait(controllers.default_config(name)).plant != "position"
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if _torque(n) else n for n in FAMILIES])
 def test_gradient_of_a_short_rollout_matches_central_differences(name, family_walks):
-    b = family_walks(name)
+    b = family_walks(name, gradient=True)
     rows, cost, dcost, probe, h, (i0, ip, im) = b.rows, b.cost, b.dcost, b.probe, b.h, b.sel
     assert rows[i0][3] == 0.0 and rows[ip][3] == h and rows[im][3] == -h
     fd = (cost[ip] - cost[im]) / (2 * h)
