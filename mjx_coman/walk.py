@@ -38,6 +38,7 @@ import time
 from pathlib import Path
 
 from mjx_coman import controllers
+from mjx_coman.studies.metrics import heading_change_rad
 
 DIRECTIONS = {"forward": (1.0, 0.0), "backward": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}
 MAX_SECONDS = 600.0
@@ -260,16 +261,6 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "wall_s": round(wall, 2),
     }
     return summary, res
-
-
-def heading_change_rad(res) -> float | None:
-    """Ground-truth pelvis yaw, unwrapped, from the first record to the last before any fall, rad (+ left)."""
-    import numpy as np
-
-    yaw = np.unwrap(np.asarray(res.saved["pelvis_yaw_rad"], np.float64))
-    t = np.asarray(res.time_s)
-    yaw = yaw[t <= float(res.fall_time_s)] if bool(res.fell) else yaw
-    return float(yaw[-1] - yaw[0]) if len(yaw) > 1 else None
 
 
 def stance_metrics(res, plant: str) -> dict:

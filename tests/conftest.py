@@ -4,7 +4,7 @@ Under pytest-xdist (``-n 2 --dist loadgroup``, the README's test command) each t
 its module-scoped fixtures are built once; modules that share a session-scoped compilation share a group:
 the shared walk of every position-controlled controller (``tests/mjx_coman/conftest.py``; each torque-controlled
 family has its own), and the subprocesses that share JAX's
-persistent compilation cache (the walk command line and notebook 03).
+persistent compilation cache (the walk command line and notebook 03; the studies command line and notebook 06).
 """
 
 import pytest
@@ -16,6 +16,7 @@ configure_cpu()
 SHARED_GROUPS = {
     "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py"),
     "walk-subprocesses": ("test_walk_cli.py", "test_notebook_03.py"),
+    "studies-subprocesses": ("test_studies_cli.py", "test_notebook_06.py"),
 }
 
 

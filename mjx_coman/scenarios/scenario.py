@@ -225,11 +225,10 @@ def needs_scene(scenarios: Sequence[Scenario]) -> bool:
     return any(s.terrain != "flat" or s.slope_deg != 0 for s in scenarios)
 
 
-def _scene_models(base: EnvParams, scenarios: Sequence[Scenario]) -> list[mujoco.MjModel]:
+def _scene_models(base: EnvParams, scenarios: Sequence[Scenario], scene: bool) -> list[mujoco.MjModel]:
     """One ``MjModel`` per scenario carrying its payload and gravity (the scene variant, or the packaged one)."""
     from mjx_coman import load_model
 
-    scene = needs_scene(scenarios)
     out = []
     for s in scenarios:
         m = scene_model(s.terrain) if scene else load_model()
@@ -244,11 +243,13 @@ def _scene_models(base: EnvParams, scenarios: Sequence[Scenario]) -> list[mujoco
     return out
 
 
-def batched_env_params(base: EnvParams, scenarios: Sequence[Scenario]) -> tuple[EnvParams, EnvParams]:
+def batched_env_params(base: EnvParams, scenarios: Sequence[Scenario],
+                       scene: bool = False) -> tuple[EnvParams, EnvParams]:
     """``(params, in_axes)``: ``base`` under each scenario, stacked on a leading axis, for ``jax.vmap``.
 
-    The scenarios must share their terrain (a static scene). With no terrain and no slope the model is
-    ``base.model`` with the payload fields replaced; otherwise the scene variant's (with ``base``'s
+    The scenarios must share their terrain (a static scene). With no terrain, no slope and ``scene`` false
+    the model is ``base.model`` with the payload fields replaced; otherwise the scene variant's (``scene``:
+    always, so that flat and sloped batches are one program) (with ``base``'s
     timestep: other changes of ``base.model`` are not carried over). Actuator and sensor leaves are all
     stacked; the model's :data:`BATCH_MODEL_FIELDS` and ``opt.gravity`` are.
 
@@ -267,8 +268,9 @@ def batched_env_params(base: EnvParams, scenarios: Sequence[Scenario]) -> tuple[
     base_ticks = int(np.asarray(base.actuator.delay_ticks))
     ticks = [check_delay(s.delay_ms, base_ticks, period) for s in scenarios]
     n = len(scenarios)
-    models = _scene_models(base, scenarios)
-    model = mjx.put_model(models[0]) if needs_scene(scenarios) else base.model
+    scene = scene or needs_scene(scenarios)
+    models = _scene_models(base, scenarios, scene)
+    model = mjx.put_model(models[0]) if scene else base.model
     fields = {f: jnp.asarray(np.stack([getattr(m, f) for m in models]), getattr(model, f).dtype)
               for f in BATCH_MODEL_FIELDS}
     gravity = jnp.asarray(np.stack([m.opt.gravity for m in models]), model.opt.gravity.dtype)

@@ -109,19 +109,6 @@ def test_push_force_is_the_impulse_over_the_duration():
     assert cli.push_force_n(2.0, 0.2, "backward") == pytest.approx((-10.0, 0.0, 0.0))
 
 
-def test_heading_change_is_unwrapped_and_stops_at_a_fall():
-    from types import SimpleNamespace
-
-    t = np.arange(1, 101) * 0.02
-    yaw = np.angle(np.exp(1j * 0.5 * t))  # 0.5 rad/s, wrapped to (-pi, pi] after 2 pi
-    t_long = np.arange(1, 1001) * 0.02
-    yaw_long = np.angle(np.exp(1j * 0.5 * t_long))
-    res = SimpleNamespace(saved={"pelvis_yaw_rad": yaw_long}, time_s=t_long, fell=False, fall_time_s=np.inf)
-    assert cli.heading_change_rad(res) == pytest.approx(0.5 * (t_long[-1] - t_long[0]), rel=1e-6)
-    fell = SimpleNamespace(saved={"pelvis_yaw_rad": yaw}, time_s=t, fell=True, fall_time_s=1.0)
-    assert cli.heading_change_rad(fell) == pytest.approx(0.5 * (1.0 - t[0]), rel=1e-6)
-
-
 def test_push_direction_in_degrees_matches_the_names():
     for name, deg in (("forward", "0"), ("left", "90"), ("backward", "180"), ("right", "-90")):
         assert cli.push_force_n(3.0, 0.3, deg) == pytest.approx(cli.push_force_n(3.0, 0.3, name), abs=1e-12)

@@ -22,7 +22,7 @@ TUNABLE = ("mpc_com_midpoint_weight", "mpc_com_step_weight", "mpc_footstep_weigh
            "half_width_m", "clearance_m", "com_height_kp_per_s2", "com_height_kd_per_s", "com_weight",
            "base_kp_per_s2", "base_kd_per_s", "base_weight", "swing_kp_per_s2", "swing_kd_per_s", "swing_weight",
            "posture_kp_per_s2", "posture_kd_per_s", "posture_weight", "qdd_weight", "force_weight_per_n2",
-           "imu_filter_s", "shift_m", "touchdown_depth_m")
+           "imu_filter_s", "shift_m", "touchdown_depth_m", "joystick_ramp_s")
 
 SETTINGS = (
     Setting("step_time_s", 0.4, "duration of one single-support step, s (the seed does not state it; "
@@ -38,8 +38,6 @@ SETTINGS = (
     Setting("n_steps", 5, "footsteps the MPC plans ahead (seed 001: N = 5)"),
     Setting("mpc_solver", "closed-form", "closed-form (equality-only, one linear solve) or qpax (with the "
             "friction bound |mu z0| on the CoM-to-foot distance)"),
-    Setting("joystick_ramp_s", 1.0, "the joystick's velocities ramp in linearly over this time, s (seed 001, "
-            "Fig. 4: about 3 s)"),
     Setting("shift_m", 0.055, "CoM shift toward the first stance foot during the start, m", True, (0.0, 0.1)),
     Setting("mpc_com_midpoint_weight", 1.0, "Q_q of seed 001 eq. 16: step-average CoM on the midpoint path, 1/m^2",
             True, (0.0, None)),
@@ -71,6 +69,8 @@ SETTINGS = (
             (0.0, None)),
     Setting("imu_filter_s", 0.05, "time constant of the IMU's complementary filter, s (0: raw IMU)", True,
             (0.0, None)),
+    Setting("joystick_ramp_s", 1.0, "the joystick's velocities ramp in linearly over this time, s (seed 001, "
+            "Fig. 4: about 3 s)", True, (0.0, 30.0)),
 )
 
 
@@ -78,7 +78,7 @@ SETTINGS = (
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
     meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body",
-                 "friction_coeff", "startup_s", "n_steps", "mpc_solver", "joystick_ramp_s", "dt_s"],
+                 "friction_coeff", "startup_s", "n_steps", "mpc_solver", "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
 class Config:
@@ -107,6 +107,7 @@ class Config:
     imu_filter_s: jax.Array
     shift_m: jax.Array
     touchdown_depth_m: jax.Array
+    joystick_ramp_s: jax.Array
     posture_rad: jax.Array  # (23,) the crouched stance
     com_ref_m: jax.Array  # (3,) its CoM over the mid-ankles; z is the LIPM height z0 (soles at z = 0)
     sole_anchor_m: jax.Array  # (2, 3) right and left sole sites at the reset
@@ -120,7 +121,6 @@ class Config:
     startup_s: float
     n_steps: int
     mpc_solver: str
-    joystick_ramp_s: float
     dt_s: float = 0.002
 
     def replace(self, **kw) -> "Config":
@@ -137,8 +137,7 @@ def _number(name, v, lo, hi, lo_open=False) -> float:
 
 def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4,
                 plant: str = "torque-ideal", fixed_upper_body: bool = True, friction_coeff: float = 0.7,
-                startup_s: float = 0.05, n_steps: int = 5, mpc_solver: str = "closed-form",
-                joystick_ramp_s: float = 1.0, **tunables) -> Config:
+                startup_s: float = 0.05, n_steps: int = 5, mpc_solver: str = "closed-form", **tunables) -> Config:
     """A validated config (host).
 
     Raises:
@@ -164,7 +163,6 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
     knee_rad = _number("knee_rad", knee_rad, 0.1, 1.2)
     friction_coeff = _number("friction_coeff", friction_coeff, 0.0, 2.0, lo_open=True)
     startup_s = _number("startup_s", startup_s, 0.0, 1.0)
-    joystick_ramp_s = _number("joystick_ramp_s", joystick_ramp_s, 0.0, 30.0)
     values = {s.name: s.default for s in SETTINGS if s.tunable} | tunables
     bounds = {s.name: s.bounds for s in SETTINGS if s.tunable}
     for name, v in values.items():
@@ -179,4 +177,4 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
                   com_ref_m=jnp.asarray(com, f), sole_anchor_m=jnp.asarray(soles, f), step_time_s=step_time_s,
                   double_support_s=double_support_s, start_s=start_s, knee_rad=knee_rad, plant=plant,
                   fixed_upper_body=fixed_upper_body, friction_coeff=friction_coeff, startup_s=startup_s,
-                  n_steps=n_steps, mpc_solver=mpc_solver, joystick_ramp_s=joystick_ramp_s)
+                  n_steps=n_steps, mpc_solver=mpc_solver)

@@ -95,7 +95,7 @@ def step_timing(config: Config, time_s):
 
 def joystick_now(config: Config, joystick, time_s):
     """The joystick's velocities ramped in over ``joystick_ramp_s`` (seed 001, Fig. 4)."""
-    ramp = jnp.clip(time_s / max(config.joystick_ramp_s, 1e-9), 0.0, 1.0)
+    ramp = jnp.clip(time_s / jnp.maximum(config.joystick_ramp_s, 1e-9), 0.0, 1.0)
     return ramp * joystick.forward_mps, ramp * joystick.lateral_mps, ramp * joystick.turn_rad_per_s
 
 

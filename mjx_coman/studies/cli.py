@@ -1,0 +1,117 @@
+"""Command line: ``python -m mjx_coman.studies NAME [--controller footstep-mpc] [--size full|small] [--seed 0]
+[--json] [--plot F.png] [--out F.json]``.
+
+Runs one of seed 001's experiments (:mod:`mjx_coman.studies.seed001`) for a registered walking controller and
+prints its result (JSON with ``--json``); ``--plot`` draws its figure, ``--out`` writes the JSON atomically.
+Every argument is checked before anything is built: a bad one exits with status 2 and one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+PROG = "python -m mjx_coman.studies"
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit status 2
+        sys.stderr.write(f"{self.prog}: error: {' '.join(str(message).split())}\n")
+        sys.exit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from mjx_coman.studies import SIZES, names
+
+    p = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    p.add_argument("experiment", metavar="{" + ",".join(names()) + "}")
+    p.add_argument("--controller", default="footstep-mpc", help="registered walking controller")
+    p.add_argument("--size", default="full", choices=SIZES, help="full: the paper's experiment; small: two short rows")
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the sensor noise")
+    p.add_argument("--batch", type=int, default=8, help="rows per compiled call")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--plot", default=None, help="draw the experiment's figure to this .png/.pdf/.svg")
+    p.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _writable(flag: str, path: str | None, suffixes=None) -> None:
+    if path is None:
+        return
+    p = Path(path)
+    if suffixes and p.suffix.lower() not in suffixes:
+        raise ValueError(f"{flag} must end in one of {', '.join(suffixes)}, got {path!r}")
+    if p.is_dir():
+        raise ValueError(f"{flag} names a directory: {path!r}")
+    if not p.resolve().parent.is_dir() or not os.access(p.resolve().parent, os.W_OK):
+        raise ValueError(f"{flag} directory does not exist or is not writable: {str(p.resolve().parent)!r}")
+
+
+def validate(args) -> None:
+    """Check every argument (the plan is built, nothing compiled).
+
+    Raises:
+        ValueError: naming the bad value.
+    """
+    from mjx_coman import studies
+
+    if not 1 <= args.batch <= 1024:
+        raise ValueError(f"--batch must lie in [1, 1024], got {args.batch}")
+    _writable("--plot", args.plot, PLOT_SUFFIXES)
+    _writable("--out", args.out)
+    studies.plan(args.experiment, args.controller, args.size, args.seed)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        validate(args)
+    except ValueError as exc:
+        sys.stderr.write(f"{PROG}: error: {' '.join(str(exc).split())}\n")
+        return 2
+    from mjx_coman import studies
+
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=None, desc=f"{args.experiment} ({args.controller})", unit="walk", file=sys.stderr)
+
+    def progress(done, total):
+        bar.total = total
+        bar.update(done - bar.n)
+
+    try:
+        result, rows = studies.run(args.experiment, args.controller, args.size, args.seed, batch=args.batch,
+                                   progress=None if bar is None else progress)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{PROG}: interrupted\n")
+        return 130
+    finally:
+        if bar is not None:
+            bar.close()
+    if args.plot:
+        from mjx_coman.studies import plots
+
+        plots.save(result, rows, args.plot)
+        result["plot"] = str(args.plot)
+    text = json.dumps(studies.to_json(result), indent=1, allow_nan=False)
+    if args.out:
+        out = Path(args.out)
+        fd, tmp = tempfile.mkstemp(dir=out.resolve().parent, prefix=out.name, suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            f.write(text + "\n")
+        os.replace(tmp, out)
+    if args.json:
+        print(text)
+    else:
+        for k, v in result.items():
+            if k != "rows":
+                print(f"{k:40s} {v}")
+    return 0
