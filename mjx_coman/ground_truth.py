@@ -64,7 +64,7 @@ class Judge(NamedTuple):
         cycle_steps: last steps of the walk averaged into its cycle.
         confirm_steps: steps in a row within the tolerance needed to call a walk recovered (the cycle's included).
         terrain: the ground the height is measured from (``flat``, ``rough:CM[:SEED]``, ``stairs:CM``:
-            :func:`mjx_coman.scenarios.scenario_judge` sets the scene's).
+            :func:`judge_on` sets the scene's).
     """
 
     fall_height_m: float = 0.3
@@ -142,6 +142,13 @@ class Verdict(NamedTuple):
 
 
 @functools.lru_cache(maxsize=1)
+def judge_on(terrain, judge: Judge | None = None) -> Judge:
+    """The fall judge on a terrain (its text, or anything with a ``terrain`` field such as a
+    :class:`~mjx_coman.scenarios.Scenario`), with ``judge``'s thresholds (default :class:`Judge`)."""
+    terrain = getattr(terrain, "terrain", terrain)
+    return (judge or Judge())._replace(terrain=parse_terrain(terrain).text)
+
+
 def foot_body_ids() -> tuple[int, int]:
     """MuJoCo ids of the (left, right) foot bodies (their origin is the ankle centre)."""
     m = load_model()

@@ -211,13 +211,14 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     import numpy as np
 
     from mjx_coman import rollout as ro
+    from mjx_coman import ground_truth as gt
     from mjx_coman import scenarios
 
     ctrl, config = controllers.load(args.controller_name, args.overrides)
     env_params = ro.plant_env_params(args.gait.plant)
     if args.scenario != scenarios.Scenario():
         env_params = scenarios.scenario_env_params(env_params, args.scenario)
-    judge = scenarios.scenario_judge(args.scenario)
+    judge = gt.judge_on(args.scenario)
     if args.push_ns > 0:
         start = push_start_s(args.gait, args.push_step, args.push_phase)
         push = ro.make_push(start, args.push_duration, push_force_n(args.push_ns, args.push_duration, args.push_dir))

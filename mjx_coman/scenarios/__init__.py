@@ -2,8 +2,8 @@
 
 :class:`Scenario` holds them as plain values; :func:`scenario_env_params`
 and :func:`batched_env_params` apply them to an ``EnvParams`` (batchable:
-payload, slope, noise, delay), :func:`scenario_judge` gives the fall judge of
-the terrain, and :mod:`mjx_coman.scenarios.terrain` builds the terrain scene
+payload, slope, noise, delay), the fall judge of the terrain is
+:func:`mjx_coman.ground_truth.judge_on`, and :mod:`mjx_coman.scenarios.terrain` builds the terrain scene
 variants (static: one compilation each). See :mod:`mjx_coman.scenarios.scenario`.
 """
 
@@ -21,7 +21,6 @@ from mjx_coman.scenarios.scenario import (  # noqa: F401
     nominal_delay_ticks,
     scenario_batch_axes,
     scenario_env_params,
-    scenario_judge,
     select,
     slope_gravity,
 )

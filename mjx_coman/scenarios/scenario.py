@@ -26,7 +26,7 @@ rollout (:class:`Scenario`), never controller code.
 * **Terrain** (``flat``, ``rough:CM[:SEED]``, ``stairs:CM``): a static scene
   variant (:mod:`mjx_coman.scenarios.terrain`), a new model and a new
   compilation; the fall judge then measures the pelvis height above the
-  local terrain (:func:`scenario_judge`).
+  local terrain (:func:`mjx_coman.ground_truth.judge_on`).
 * **Sensor noise**: ``imu_noise_deg`` (std of the IMU orientation error per
   axis) and ``joint_noise_deg`` (white noise on the link encoders; the
   motor encoders, precise optical ones, stay exact); ``None`` keeps the base
@@ -308,10 +308,3 @@ def scenario_env_params(base: EnvParams, scenario: Scenario) -> EnvParams:
     params, axes = batched_env_params(base, [scenario])
     return select(params, axes, 0)
 
-
-def scenario_judge(scenario_or_terrain, judge=None):
-    """The fall judge of a scenario's terrain (``judge``'s thresholds; default :class:`~mjx_coman.ground_truth.Judge`)."""
-    from mjx_coman import ground_truth as gt
-
-    terrain = scenario_or_terrain.terrain if isinstance(scenario_or_terrain, Scenario) else scenario_or_terrain
-    return (judge or gt.Judge())._replace(terrain=parse_terrain(terrain).text)

@@ -20,6 +20,7 @@ import jax
 import numpy as np
 
 from mjx_coman import controllers
+from mjx_coman import ground_truth as gt
 from mjx_coman import rollout as ro
 from mjx_coman import scenarios as sc
 from mjx_coman.studies import metrics
@@ -147,7 +148,7 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
         by_terrain.setdefault(r.scenario.validate().terrain, []).append(i)
     done = 0
     for terrain, idx in by_terrain.items():
-        spec = ro.WalkSpec(seconds=float(seconds), judge=sc.scenario_judge(terrain))
+        spec = ro.WalkSpec(seconds=float(seconds), judge=gt.judge_on(terrain))
         size = batch if terrain == "flat" else min(batch, len(idx))  # flat: one shape for every experiment
         for lo in range(0, len(idx), size):
             part = idx[lo:lo + size]

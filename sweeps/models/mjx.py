@@ -153,11 +153,11 @@ def gait(config: SweepConfig):
 
 def walk_spec(config: SweepConfig):
     """The static :class:`mjx_coman.rollout.WalkSpec` of a sweep."""
-    from mjx_coman.scenarios import scenario_judge
+    from mjx_coman.ground_truth import judge_on
 
     g = gait(config)
     return _rollout_module().WalkSpec(seconds=g.first_step_s + config.n_steps * g.step_time_s,
-                                      judge=scenario_judge(config.terrain))
+                                      judge=judge_on(config.terrain))
 
 
 def ticks_per_rollout(config: SweepConfig) -> int:

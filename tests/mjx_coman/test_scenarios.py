@@ -213,8 +213,8 @@ def test_bad_scenarios_raise_naming_the_value(kw, word):
 def test_one_batch_shares_one_terrain():
     with pytest.raises(ValueError, match="terrain differs"):
         sc.batched_env_params(ro.walking_env_params(), [sc.Scenario(), sc.Scenario(terrain="stairs:5")])
-    assert sc.scenario_judge(sc.Scenario(terrain="rough:2.0")).terrain == "rough:2"
-    assert sc.scenario_judge("flat") == gt.Judge()
+    assert gt.judge_on(sc.Scenario(terrain="rough:2.0")).terrain == "rough:2"
+    assert gt.judge_on("flat") == gt.Judge()
 
 
 # --- one compiled batch of 1 s walks under several scenarios -------------------------------------------------
