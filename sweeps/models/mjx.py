@@ -287,7 +287,7 @@ def tune_problem(tc) -> TuneProblem:
     from the loaded feet (:func:`mjx_coman.ground_truth.support_point`) over the walk, cm^2.
     """
     ctrls, ro = _controllers(), _rollout_module()
-    ctrl, cfg0 = ctrls.load(tc.controller, dict(tc.controller_overrides or {}))
+    ctrl = ctrls.get(tc.controller)  # the names are checked before the config is built (seconds for the 3LP's)
     names = tuple(tc.tunables) if tc.tunables else tuple(n for n in ("deadzone", "zeta") if n in ctrl.tunables())
     by_name = {s.name: s for s in ctrl.settings}
     for n in names:
@@ -295,6 +295,7 @@ def tune_problem(tc) -> TuneProblem:
             raise ValueError(f"{n!r} is not a tunable setting of {tc.controller}; tunable: {', '.join(ctrl.tunables())}")
     if not names:
         raise ValueError(f"controller {tc.controller!r} has no tunable settings to tune")
+    ctrl, cfg0 = ctrls.load(tc.controller, dict(tc.controller_overrides or {}))
     tf = {n: _transform(by_name[n]) for n in names}
     g = ctrl.gait(cfg0)
     env = nominal_env(1.0, g.plant)

@@ -53,14 +53,15 @@ RECORD_EVERY = 10
 
 
 def walk_record(state):
-    """What the shared walks save every 10 ticks (ground truth, the readings and the whole telemetry)."""
+    """What the shared walks save every 10 ticks (ground truth, the readings, the command and the whole
+    telemetry)."""
     from mjx_coman import ground_truth as gt
     from mjx_coman.sensors import model_ids
 
     d = state.env.data
     return dict(pelvis_m=gt.pelvis_m(d), com_m=gt.com_m(d), feet_m=gt.foot_points_world(d),
                 pelvis_quat=d.xquat[model_ids()["pelvis_body"]], telemetry=state.telemetry,
-                readings=state.env.readings)
+                readings=state.env.readings, command=state.command)
 
 
 def probe_setting(ctrl) -> str:

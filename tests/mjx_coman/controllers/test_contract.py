@@ -2,9 +2,9 @@
 
 Every position-controlled name runs in one shared batch (``shared_walks`` in ``tests/mjx_coman/conftest.py``: the
 families bundled into one compiled, vmapped, forward-differentiated walk); each torque-controlled family in its
-own (``torque_walks``, each row on its plant). Checked per name: ``init`` and ``step`` jit and vmap over a
-batch of 4; a walk of 2.4 s (1 s in the torque batch) from the controller's own start without a fall; every
-output finite; the telemetry as declared; and, per family, the forward-mode derivative of a short
+own (``torque_walks``, each row on its plant). Checked per name: ``init`` and ``step`` jit and vmap (in the
+batch: no compilation of their own); a walk of 2.4 s (1 s in the torque batch) from the controller's own
+start without a fall; every output finite; the telemetry as declared; and, per family, the forward-mode derivative of a short
 rollout cost (the mean horizontal CoM over the first 0.3 s) with respect to one tunable (the first
 scalar one with a nonzero default) against central differences of +-5 %: within 5 % (float32). A torque
 family's derivative is a second compilation of its batch (a QP a tick, forward-differentiated: about 2 min
@@ -13,8 +13,6 @@ on 2 cores), so its gradient check is ``slow``.
 
 from __future__ import annotations
 
-import functools
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,7 +20,8 @@ import pytest
 
 from mjx_coman import controllers
 from mjx_coman.actuators import NU
-from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_RIGHT, Observation, Telemetry
+from mjx_coman.actuators import MODE_POSITION, MODE_TORQUE
+from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_RIGHT, Telemetry
 
 NAMES = controllers.names()
 FAMILIES = [n for i, n in enumerate(NAMES) if all(controllers.get(m).core() != controllers.get(n).core()
@@ -39,30 +38,23 @@ def _finite(tree) -> bool:
                if np.issubdtype(np.asarray(x).dtype, np.floating))
 
 
-@functools.lru_cache(maxsize=None)
-def _batched(core):
-    """``init`` and ``step`` jitted and vmapped over 4, once per family (variants share the compilation)."""
-    return (jax.jit(jax.vmap(core.init, in_axes=(None, None, 0))), jax.jit(jax.vmap(core.step, in_axes=(None, 0, 0))))
-
-
 @pytest.mark.parametrize("name", NAMES)
-def test_init_and_step_jit_and_vmap_over_a_batch_of_4(name, walking_env, reset_state):
-    ctrl, config = controllers.load(name)
-    default = controllers.default_config(FAMILIES[[controllers.get(f).core() for f in FAMILIES].index(ctrl.core())])
-    if jax.tree_util.tree_structure(config) != jax.tree_util.tree_structure(default) and hasattr(config, "plant"):
-        config = config.replace(plant=default.plant)  # a variant on another plant: the field only names it
-    init, step = _batched(ctrl.core())
-    keys = jax.random.split(jax.random.PRNGKey(0), 4)
-    states = init(config, walking_env, keys)
-    tile = lambda x: jnp.broadcast_to(x, (4, *jnp.shape(x)))  # noqa: E731
-    obs = jax.tree_util.tree_map(tile, Observation(reset_state.readings, controllers.joystick(), jnp.zeros(())))
-    states, cmd, tel = step(config, states, obs)
-    assert cmd.target.shape == (4, NU) and cmd.torso_force_n.shape == (4, 3) and cmd.mode.shape == (4,)
-    assert isinstance(tel, Telemetry) and _finite((states, cmd, tel))
-    assert tel.support.dtype == jnp.int32 and tel.step.dtype == jnp.int32 and tel.support.shape == (4,)
+def test_init_and_step_jit_and_vmap_in_the_batch(name, family_walks):
+    """The batch jits and vmaps ``init`` (over keys) and ``step`` (over states, readings and configs): every
+    row's commands and telemetry have the declared shapes and dtypes, finite."""
+    rows, res = family_walks(name)[:2]
+    i = _unpushed_row(rows, name)
+    cmd, tel = (jax.tree_util.tree_map(lambda x: x[i], res.saved[k]) for k in ("command", "telemetry"))
+    n_rec = res.time_s.shape[1]
+    assert cmd.target.shape == (n_rec, NU) and cmd.torso_force_n.shape == (n_rec, 3) and cmd.mode.shape == (n_rec,)
+    assert isinstance(tel, Telemetry) and _finite((cmd, tel))
+    assert tel.support.dtype == jnp.int32 and tel.step.dtype == jnp.int32 and tel.support.shape == (n_rec,)
     for field in ("next_footstep_m", "footstep_adjustment_m", "com_m", "com_vel_mps"):
-        assert getattr(tel, field).shape == (4, 2), field
+        assert getattr(tel, field).shape == (n_rec, 2), field
     assert np.all((np.asarray(tel.phase) >= 0) & (np.asarray(tel.phase) <= 1))
+    plant = controllers.get(name).gait(controllers.default_config(name)).plant
+    mode = MODE_POSITION if plant == "position" else MODE_TORQUE  # what its plant takes
+    assert np.all(np.asarray(cmd.mode) == mode), (name, np.unique(cmd.mode))
 
 
 @pytest.mark.parametrize("name", NAMES)
