@@ -43,6 +43,17 @@ def filter_orientation(quat, imu_quat, gyro_rad_per_s, dt_s, time_constant_s):
     return q / jnp.linalg.norm(q)
 
 
+def filter_joints(joint_rad, link_angle_rad, motor_vel_rad_per_s, dt_s, time_constant_s):
+    """Complementary filter of the link encoders: ``q <- q + qd_motor dt`` by the motor encoders' rates (exact
+    at rigid joints; at series-elastic ones they differ by the spring's deflection rate), then
+    ``q <- q + a (q_link - q)`` with ``a = dt / max(T, dt)`` (``T = 0``: the link encoders as read). White
+    encoder noise of std s leaves about ``s sqrt(a / 2)``."""
+    f = joint_rad.dtype
+    q = joint_rad + dt_s * motor_vel_rad_per_s.astype(f)
+    a = dt_s / jnp.maximum(time_constant_s, dt_s)
+    return q + a * (link_angle_rad.astype(f) - q)
+
+
 def orientation_step(state: OrientationState, readings, dt_s: float, time_constant_s) -> OrientationState:
     """One tick of :func:`filter_orientation` (the IMU's own reading on the first tick)."""
     f = state.quat.dtype

@@ -35,8 +35,12 @@ def names() -> tuple[str, ...]:
     return tuple(EXPERIMENTS)
 
 
-def plan(experiment: str, controller: str = "footstep-mpc", size: str = "full", seed: int = 0):
+def plan(experiment: str, controller: str = "footstep-mpc", size: str = "full", seed: int = 0,
+         overrides: dict | None = None):
     """The :class:`~mjx_coman.studies.seed001.Plan` of an experiment: the rows it walks (nothing built or run).
+
+    ``overrides``: settings of the controller for every row (the experiment's own, such as the steering ramp,
+    take precedence).
 
     Raises:
         ValueError: an unknown experiment, controller or size (naming the known ones), a controller the
@@ -51,14 +55,15 @@ def plan(experiment: str, controller: str = "footstep-mpc", size: str = "full", 
         raise ValueError(f"size={size!r} must be one of {', '.join(SIZES)}")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
         raise ValueError(f"seed={seed!r} must be a whole number in [0, 2**32)")
-    ctrl, config = controllers.load(controller)
+    ctrl, config = controllers.load(controller, overrides)  # ValueError names a bad setting
     if controller not in controllers.names(walking=True):
         raise ValueError(f"{controller} does not walk; choose one of {', '.join(controllers.names(walking=True))}")
     p = EXPERIMENTS[experiment].plan(controller, size, ctrl.gait(config))
-    return p._replace(rows=[r._replace(seed=seed) for r in p.rows])
+    return p._replace(rows=[r._replace(seed=seed) for r in p.rows], overrides={**(overrides or {}), **p.overrides})
 
 
-def run(experiment: str, controller: str = "footstep-mpc", size: str = "full", seed: int = 0, *, batch: int = 8,
+def run(experiment: str, controller: str = "footstep-mpc", size: str = "full", seed: int = 0,
+        overrides: dict | None = None, *, batch: int = 8,
         progress: Callable[[int, int], None] | None = None) -> tuple[dict, list]:
     """Run an experiment: ``(result, rows)`` with the JSON result and each row's figures (with ``series``).
 
@@ -68,7 +73,7 @@ def run(experiment: str, controller: str = "footstep-mpc", size: str = "full", s
     from mjx_coman.studies.batch import run_rows
     from mjx_coman.studies.seed001 import EXPERIMENTS
 
-    p = plan(experiment, controller, size, seed)
+    p = plan(experiment, controller, size, seed, overrides)
     n = len(p.rows)
     res = run_rows(controller, p.rows, p.seconds, p.overrides, batch=batch if size == "full" else n,
                    progress=None if progress is None else (lambda k: progress(k, n)))

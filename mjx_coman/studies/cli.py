@@ -1,5 +1,5 @@
-"""Command line: ``python -m mjx_coman.studies NAME [--controller footstep-mpc] [--size full|small] [--seed 0]
-[--json] [--plot F.png] [--out F.json]``.
+"""Command line: ``python -m mjx_coman.studies NAME [--controller footstep-mpc] [--set KEY=VALUE ...] [--size full|small]
+[--seed 0] [--json] [--plot F.png] [--out F.json]``.
 
 Runs one of seed 001's experiments (:mod:`mjx_coman.studies.seed001`) for a registered walking controller and
 prints its result (JSON with ``--json``); ``--plot`` draws its figure, ``--out`` writes the JSON atomically.
@@ -31,6 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("experiment", metavar="{" + ",".join(names()) + "}")
     p.add_argument("--controller", default="footstep-mpc", help="registered walking controller")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting of the controller for every walk (repeatable)")
     p.add_argument("--size", default="full", choices=SIZES, help="full: the paper's experiment; small: two short rows")
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the sensor noise")
     p.add_argument("--batch", type=int, default=8, help="rows per compiled call")
@@ -65,7 +67,10 @@ def validate(args) -> None:
         raise ValueError(f"--batch must lie in [1, 1024], got {args.batch}")
     _writable("--plot", args.plot, PLOT_SUFFIXES)
     _writable("--out", args.out)
-    studies.plan(args.experiment, args.controller, args.size, args.seed)
+    from mjx_coman import controllers
+
+    args.overrides = controllers.parse_overrides(controllers.get(args.controller), args.set)
+    studies.plan(args.experiment, args.controller, args.size, args.seed, args.overrides)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,8 +93,8 @@ def main(argv: list[str] | None = None) -> int:
         bar.update(done - bar.n)
 
     try:
-        result, rows = studies.run(args.experiment, args.controller, args.size, args.seed, batch=args.batch,
-                                   progress=None if bar is None else progress)
+        result, rows = studies.run(args.experiment, args.controller, args.size, args.seed, args.overrides,
+                                   batch=args.batch, progress=None if bar is None else progress)
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130

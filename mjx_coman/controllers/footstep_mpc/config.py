@@ -22,7 +22,8 @@ TUNABLE = ("mpc_com_midpoint_weight", "mpc_com_step_weight", "mpc_footstep_weigh
            "half_width_m", "clearance_m", "com_height_kp_per_s2", "com_height_kd_per_s", "com_weight",
            "base_kp_per_s2", "base_kd_per_s", "base_weight", "swing_kp_per_s2", "swing_kd_per_s", "swing_weight",
            "posture_kp_per_s2", "posture_kd_per_s", "posture_weight", "qdd_weight", "force_weight_per_n2",
-           "imu_filter_s", "shift_m", "touchdown_depth_m", "joystick_ramp_s")
+           "imu_filter_s", "shift_m", "touchdown_depth_m", "joystick_ramp_s",
+           "encoder_filter_s")
 
 SETTINGS = (
     Setting("step_time_s", 0.4, "duration of one single-support step, s (the seed does not state it; "
@@ -69,8 +70,10 @@ SETTINGS = (
             (0.0, None)),
     Setting("imu_filter_s", 0.05, "time constant of the IMU's complementary filter, s (0: raw IMU)", True,
             (0.0, None)),
-    Setting("joystick_ramp_s", 1.0, "the joystick's velocities ramp in linearly over this time, s (seed 001, "
+    Setting("joystick_ramp_s", 3.0, "the joystick's velocities ramp in linearly over this time, s (seed 001, "
             "Fig. 4: about 3 s)", True, (0.0, 30.0)),
+    Setting("encoder_filter_s", 0.0, "time constant of the link encoders' complementary filter with the motor "
+            "rates, s (0: the encoders as read, as seed 001)", True, (0.0, None)),
 )
 
 
@@ -108,6 +111,7 @@ class Config:
     shift_m: jax.Array
     touchdown_depth_m: jax.Array
     joystick_ramp_s: jax.Array
+    encoder_filter_s: jax.Array
     posture_rad: jax.Array  # (23,) the crouched stance
     com_ref_m: jax.Array  # (3,) its CoM over the mid-ankles; z is the LIPM height z0 (soles at z = 0)
     sole_anchor_m: jax.Array  # (2, 3) right and left sole sites at the reset

@@ -45,6 +45,7 @@ class State(NamedTuple):
         swing_start_m: (3,) the swing sole at lift-off.
         swing_start_quat: (4,) its orientation then.
         heading_rad: base yaw at the start of the current step (the stance foot's yaw).
+        joint_rad: (23,) the filtered link angles (:func:`mjx_coman.controllers.torque.filter_joints`).
     """
 
     orient: torque.OrientationState
@@ -53,6 +54,7 @@ class State(NamedTuple):
     swing_start_m: jax.Array
     swing_start_quat: jax.Array
     heading_rad: jax.Array
+    joint_rad: jax.Array
 
 
 class Extra(NamedTuple):
@@ -71,7 +73,8 @@ class Extra(NamedTuple):
 def init(config: Config, env_params, key) -> State:
     f = config.com_ref_m.dtype
     return State(torque.orientation_init(f), jnp.asarray(-1, jnp.int32), config.sole_anchor_m,
-                 config.sole_anchor_m[1], jnp.asarray([1.0, 0.0, 0.0, 0.0], f), jnp.zeros((), f))
+                 config.sole_anchor_m[1], jnp.asarray([1.0, 0.0, 0.0, 0.0], f), jnp.zeros((), f),
+                 config.posture_rad)
 
 
 def mpc_weights(config: Config) -> fs.MPCWeights:
@@ -120,6 +123,10 @@ def step(config: Config, state: State, obs):
     f = c.com_ref_m.dtype
     T = c.step_time_s
     ids = sole_site_ids()
+    joints = jnp.where(state.orient.started, torque.filter_joints(state.joint_rad, r.link_angle_rad,
+                                                                    r.motor_vel_rad_per_s, c.dt_s, c.encoder_filter_s),
+                       r.link_angle_rad.astype(f))  # the first tick: the encoders as read
+    r = r._replace(link_angle_rad=joints.astype(r.link_angle_rad.dtype))
     orient = torque.orientation_step(state.orient, r, c.dt_s, c.imu_filter_s)
     fwd, lat, turn = (v.astype(f) for v in joystick_now(c, obs.joystick, obs.time_s.astype(f)))
 
@@ -142,7 +149,7 @@ def step(config: Config, state: State, obs):
     swing_quat_now = est.data.xquat[foot_bodies][swing]
     swing_start = jnp.where(new, sole_pos[swing], state.swing_start_m)
     swing_start_quat = jnp.where(new, swing_quat_now, state.swing_start_quat)
-    state = State(orient, jnp.where(single, k, state.step), anchor, swing_start, swing_start_quat, heading)
+    state = State(orient, jnp.where(single, k, state.step), anchor, swing_start, swing_start_quat, heading, joints)
 
     # third layer: footsteps from the measured CoM state (seed 001, eq. 12-16)
     centre = jnp.mean(plant.contact_pos, axis=1)  # (2, 3) foot centres

@@ -60,8 +60,8 @@ def test_the_papers_values_are_in_the_grids():
     terrain = studies.plan("terrain")
     assert terrain.seconds == 30.0 and {r.scenario.terrain for r in terrain.rows} == {"rough:5:0", "rough:5:1",
                                                                                    "rough:5:2"}
-    steer = studies.plan("steer")
-    assert steer.overrides == {"joystick_ramp_s": 3.0}
+    steer = studies.plan("steer", overrides={"joystick_ramp_s": 1.0, "encoder_filter_s": 0.1})
+    assert steer.overrides == {"joystick_ramp_s": 3.0, "encoder_filter_s": 0.1}  # the experiment's ramp wins
 
 
 def test_steer_and_actuators_refuse_controllers_they_cannot_judge():

@@ -25,6 +25,8 @@ def no_build(monkeypatch):
     (["speeds", "--out", "/no/such/dir/x.json"], "--out"),
     (["speeds", "--batch", "0"], "--batch"),
     (["speeds", "--seed", "-3"], "seed=-3"),
+    (["speeds", "--set", "bogus=1"], "bogus"),
+    (["speeds", "--set", "encoder_filter_s=-1"], "encoder_filter_s"),
 ])
 def test_bad_arguments_exit_2_with_one_line(args, word, capsys, no_build):
     assert cli.main(args) == 2
