@@ -65,8 +65,7 @@ def _env(plant: str, rows: list[Row]):
         own = ro.plant_env_params(plant, **dict(r.actuator)).actuator if r.actuator else base.actuator
         ticks = sc.check_delay(r.scenario.delay_ms, int(np.asarray(own.delay_ticks)), period)
         acts.append(dataclasses.replace(own, delay_ticks=np.asarray(ticks, np.asarray(own.delay_ticks).dtype)))
-    act = jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *acts)
-    return dataclasses.replace(params, actuator=act), axes
+    return dataclasses.replace(params, actuator=_stack(acts)), axes
 
 
 def _record(state: ro.RolloutState) -> dict:
@@ -76,17 +75,16 @@ def _record(state: ro.RolloutState) -> dict:
 
 
 @functools.lru_cache(maxsize=16)
-def _walker(core, spec: ro.WalkSpec, axes_key):
-    """The jitted, vmapped walk of a controller core and spec (one per terrain: ``axes_key`` names it)."""
-    axes = _AXES[axes_key]
+def _walker(core, spec: ro.WalkSpec, plant: str, terrain: str):
+    """The jitted, vmapped walk of a controller core and spec on a plant and terrain (the env's in_axes are
+    those of any batch of rows there)."""
+    axes = _env(plant, [Row(scenario=sc.Scenario(terrain=terrain))])[1]
 
     def one(config, env_params, push, key, joystick):
         return ro.walk(core, config, env_params, push, key, spec, joystick, ro.SaveAt(_record, every=RECORD_EVERY))
 
     return jax.jit(jax.vmap(one, in_axes=(None, axes, 0, 0, 0)))
 
-
-_AXES: dict = {}
 
 
 def _stack(xs):
@@ -154,10 +152,8 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
             part = idx[lo:lo + size]
             chunk = [rows[i] for i in part]
             chunk += [chunk[0]] * (size - len(chunk))
-            env, axes = _env(plant, chunk)
-            key = (plant, terrain)
-            _AXES.setdefault(key, axes)
-            fn = _walker(ctrl.core(), spec, key)
+            env = _env(plant, chunk)[0]
+            fn = _walker(ctrl.core(), spec, plant, terrain)
             pushes = _stack([_push(r) for r in chunk])
             keys = np.stack([np.asarray(jax.random.PRNGKey(r.seed)) for r in chunk])
             joy = _stack([controllers.joystick(r.forward_mps, turn_rad_per_s=r.turn_rad_per_s) for r in chunk])

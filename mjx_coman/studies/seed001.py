@@ -48,6 +48,11 @@ def _figures(r: dict) -> dict:
     return {k: v for k, v in r.items() if k != "series"}
 
 
+def _table(plan: Plan, res: list) -> list[dict]:
+    """Each row's labels and figures (no series): an experiment's JSON rows."""
+    return [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+
+
 def largest_tolerated(values, walked) -> float | None:
     """The largest value whose walk and every smaller one's (by magnitude) did not fall; ``None``: the
     smallest fell."""
@@ -159,7 +164,7 @@ def _push_plan(name, size, gait):
 
 
 def _push_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     per_dir = {}
     for deg in sorted({x["direction_deg"] for x in rows}):
         at3 = [x for x in rows if x["direction_deg"] == deg and x["impulse_ns"] == PUSH_NS]
@@ -189,7 +194,7 @@ def _mass_plan(name, size, gait):
 
 
 def _mass_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     nominal = [x for x in rows if x["body"] == "none"]
     largest = {}
     for body in MASS_BODIES:
@@ -211,7 +216,7 @@ def _slope_plan(name, size, gait):
 
 
 def _slope_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     up = _by(plan, res, "slope_deg", lambda lab: lab["slope_deg"] > 0)
     down = _by(plan, res, "slope_deg", lambda lab: lab["slope_deg"] < 0)
     return {"rows": rows, "largest_up_deg": largest_tolerated(*up), "largest_down_deg": largest_tolerated(*down),
@@ -237,7 +242,7 @@ def _noise_plan(name, size, gait):
 
 
 def _noise_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     imu = _by(plan, res, "imu_noise_deg", lambda lab: lab["axis"] == "imu")
     joint = _by(plan, res, "joint_noise_deg", lambda lab: lab["axis"] == "joint")
     return {"rows": rows, "largest_imu_noise_deg_with_1deg_joint": largest_tolerated(*imu),
@@ -256,7 +261,7 @@ def _delay_plan(name, size, gait):
 
 
 def _delay_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     return {"rows": rows, "largest_delay_ms": largest_tolerated(*_by(plan, res, "delay_ms")),
             "paper": "10 ms controller-to-robot delay tolerated (Fig. 5C)"}
 
@@ -275,7 +280,7 @@ def _terrain_plan(name, size, gait):
 
 
 def _terrain_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     return {"rows": rows, "walked": sum(not x["fell"] for x in rows), "terrains": len(rows),
             "paper": "30 s over +-5 cm rough ground (Fig. 5D)"}
 
@@ -296,7 +301,7 @@ def _actuators_plan(name, size, gait):
 
 
 def _actuators_reduce(plan, res):
-    rows = [{**lab, **_figures(r)} for lab, r in zip(plan.labels, res)]
+    rows = _table(plan, res)
     ideal = [x for x in rows if x["torque_loop"] == "ideal"]
     lags, ok = _by(plan, res, "lag_s", lambda lab: lab["torque_loop"] == "sea")
     return {"rows": rows, "ideal_walked": (not ideal[0]["fell"]) if ideal else None,
