@@ -306,7 +306,7 @@ def _list_controllers(args, parser) -> int:
     except (GridError, ValueError) as e:
         parser.error(str(e))
     if args.json:
-        from sweeps.runner import strict_json
+        from jaxlp.files import strict_json
 
         print(strict_json(table))
         return 0
@@ -376,7 +376,8 @@ def _sweep(args, parser) -> int:
 
     from sweeps import report
     from sweeps.models import ModelUnavailable, check
-    from sweeps.runner import SweepConflict, run_sweep, save_text_atomic, strict_json
+    from jaxlp.files import save_text_atomic, strict_json
+    from sweeps.runner import SweepConflict, run_sweep
 
     try:
         runnable = []

@@ -126,7 +126,7 @@ def plot_holdout(path, runs: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sweeps.runner import save_bytes_atomic
+    from jaxlp.files import save_bytes_atomic
 
     names = list(runs)
     ncol = max(len(v) for v in runs.values())
@@ -145,7 +145,7 @@ def plot_holdout(path, runs: dict) -> None:
 
 def save_runs(path, runs: dict) -> None:
     """Per-rollout results of held-out sweeps as one ``.npz`` (atomically), configurations included."""
-    from sweeps.runner import save_npz_atomic
+    from jaxlp.files import save_npz_atomic
 
     arrays = {}
     for name, lst in runs.items():
@@ -193,7 +193,8 @@ def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: 
     Raises:
         GridError: a bad grid or override. SweepConflict: a folder holding another sweep, without ``force``.
     """
-    from sweeps.runner import run_sweep, save_text_atomic, strict_json
+    from jaxlp.files import save_text_atomic, strict_json
+    from sweeps.runner import run_sweep
 
     out = Path(out)
     model = model or record["plant"]

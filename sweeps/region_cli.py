@@ -227,7 +227,7 @@ def run(args, parser) -> int:
 
     from jaxlp.presets import get_params
     from sweeps import region as R
-    from sweeps.runner import save_bytes_atomic, save_text_atomic
+    from jaxlp.files import save_bytes_atomic, save_text_atomic
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from sweeps.grid import SCENARIO_AXES, SweepConfig
-from sweeps.runner import SweepRun, save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
+from jaxlp.files import save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
+from sweeps.runner import SweepRun
 
 CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
                "max_abs_footstep_adjustment_m", "fall_time_s", "reason")

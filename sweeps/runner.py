@@ -30,7 +30,6 @@ import math
 import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -39,6 +38,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from jaxlp.files import save_npz_atomic, save_text_atomic, strict_json
 from sweeps.grid import SweepConfig, grid_inputs, scenario_columns
 from sweeps.models import RolloutInputs, check, get_model
 
@@ -64,53 +64,6 @@ class SweepRun(NamedTuple):
     config: SweepConfig
     results: dict | None
     timing: dict
-
-
-def _atomic_write(path: Path, write: Callable) -> None:
-    """Write through ``write(fileobj)`` to a temporary file beside ``path``, then rename."""
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def save_npz_atomic(path: Path, arrays: dict) -> None:
-    """``np.savez`` to ``path`` atomically."""
-    _atomic_write(Path(path), lambda f: np.savez(f, **arrays))
-
-
-def save_text_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically."""
-    save_bytes_atomic(path, text.encode())
-
-
-def save_bytes_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically."""
-    _atomic_write(Path(path), lambda f: f.write(data))
-
-
-def _finite_or_none(x):
-    if isinstance(x, dict):
-        return {k: _finite_or_none(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite_or_none(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return _finite_or_none(x.item())
-    return x
-
-
-def strict_json(obj, indent: int = 1) -> str:
-    """JSON that strict parsers accept: non-finite numbers become ``null``."""
-    return json.dumps(_finite_or_none(obj), indent=indent, allow_nan=False)
 
 
 def stored_hash(out_dir: Path) -> str | None:

@@ -231,7 +231,7 @@ def loss_png(record: dict) -> bytes:
 
 def write_outputs(out: Path, record: dict) -> None:
     """``tuned.json`` and ``loss.png`` in ``out``, each written atomically (strict JSON)."""
-    from sweeps.runner import save_bytes_atomic, save_text_atomic, strict_json
+    from jaxlp.files import save_bytes_atomic, save_text_atomic, strict_json
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

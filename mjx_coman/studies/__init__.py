@@ -11,21 +11,9 @@ Modules: :mod:`.batch` (batched walks over rows), :mod:`.metrics` (ground-truth 
 
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 SIZES = ("small", "full")
-
-
-def to_json(x):
-    """``x`` with non-finite floats as ``None`` (strict JSON)."""
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: to_json(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [to_json(v) for v in x]
-    return x
 
 
 def names() -> tuple[str, ...]:

@@ -9,11 +9,11 @@ Every argument is checked before anything is built: a bad one exits with status 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import tempfile
 from pathlib import Path
+
+from jaxlp.files import save_text_atomic, strict_json
 
 PROG = "python -m mjx_coman.studies"
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -106,13 +106,9 @@ def main(argv: list[str] | None = None) -> int:
 
         plots.save(result, rows, args.plot)
         result["plot"] = str(args.plot)
-    text = json.dumps(studies.to_json(result), indent=1, allow_nan=False)
+    text = strict_json(result)
     if args.out:
-        out = Path(args.out)
-        fd, tmp = tempfile.mkstemp(dir=out.resolve().parent, prefix=out.name, suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(text + "\n")
-        os.replace(tmp, out)
+        save_text_atomic(Path(args.out), text + "\n")
     if args.json:
         print(text)
     else:
