@@ -61,6 +61,9 @@ class ThreeLPParams:
         I2: leg inertia about its own CoM (sagittal = lateral), kg m^2.
         pw: half pelvis width (hip offset from the pelvis centre), m.
         g: gravity, m/s^2.
+        other_mass_kg: mass of the robot that no 3LP body carries (COMAN: the
+            pelvis, which the 3LP keeps massless), kg; it enters only
+            :attr:`total_mass_kg`, which scales the DLQR torque cost.
     """
 
     m1: jax.Array
@@ -71,11 +74,17 @@ class ThreeLPParams:
     I2: jax.Array
     pw: jax.Array
     g: jax.Array
+    other_mass_kg: jax.Array
+
+    @property
+    def model_mass_kg(self) -> jax.Array:
+        """Mass of the 3LP bodies, ``m1 + 2 m2`` (kg)."""
+        return self.m1 + 2.0 * self.m2
 
     @property
     def total_mass_kg(self) -> jax.Array:
-        """Mass of the whole model, ``m1 + 2 m2`` (kg)."""
-        return self.m1 + 2.0 * self.m2
+        """The robot's nominal total mass, ``m1 + 2 m2 + other_mass_kg`` (kg; COMAN 28.5)."""
+        return self.model_mass_kg + self.other_mass_kg
 
     def as_dict(self) -> dict[str, float]:
         """Concrete values as plain floats (for reports and JSON)."""
@@ -92,6 +101,7 @@ class ThreeLPParams:
             _check_positive(name, getattr(self, name))
         _check_nonnegative("h3", self.h3)
         _check_nonnegative("pw", self.pw)
+        _check_nonnegative("other_mass_kg", self.other_mass_kg)
         if _is_concrete(self.h1) and _is_concrete(self.h2):
             h1 = np.asarray(self.h1, float)
             h2 = np.asarray(self.h2, float)
@@ -112,13 +122,14 @@ def make_params(
     I2: float,
     pw: float,
     g: float = GRAVITY_MPS2,
+    other_mass_kg: float = 0.0,
 ) -> ThreeLPParams:
     """Build validated 3LP parameters from their values.
 
     Raises:
         ValueError: see :meth:`ThreeLPParams.validate`.
     """
-    vals = dict(m1=m1, m2=m2, h1=h1, h2=h2, h3=h3, I2=I2, pw=pw, g=g)
+    vals = dict(m1=m1, m2=m2, h1=h1, h2=h2, h3=h3, I2=I2, pw=pw, g=g, other_mass_kg=other_mass_kg)
     return ThreeLPParams(**{k: jnp.asarray(v, dtype=float) for k, v in vals.items()}).validate()
 
 
@@ -140,6 +151,8 @@ class SegmentTable:
         upper_mass_kg: (k,) masses of the upper-body elements.
         upper_com_height_m: (k,) CoM heights above the pelvis.
         half_pelvis_width_m: hip offset from the pelvis centre.
+        other_mass_kg: mass in neither the legs nor the upper body (a pelvis
+            the 3LP keeps massless); counted only in the total mass.
     """
 
     leg_mass_kg: jax.Array
@@ -149,6 +162,7 @@ class SegmentTable:
     upper_mass_kg: jax.Array
     upper_com_height_m: jax.Array
     half_pelvis_width_m: jax.Array
+    other_mass_kg: jax.Array
 
     def validate(self) -> "SegmentTable":
         """Raise ``ValueError`` for a non-physical concrete table; return ``self``."""
@@ -160,6 +174,7 @@ class SegmentTable:
         _check_nonnegative("upper_mass_kg", self.upper_mass_kg)
         _check_positive("sum(upper_mass_kg)", jnp.sum(self.upper_mass_kg) if _is_concrete(self.upper_mass_kg) else self.upper_mass_kg)
         _check_nonnegative("half_pelvis_width_m", self.half_pelvis_width_m)
+        _check_nonnegative("other_mass_kg", self.other_mass_kg)
         return self
 
 
@@ -219,6 +234,7 @@ def from_segments(table: SegmentTable, g: float = GRAVITY_MPS2) -> ThreeLPParams
     params = ThreeLPParams(
         m1=m1, m2=m2, h1=jnp.asarray(table.leg_length_m, float), h2=h2, h3=h3, I2=I2,
         pw=jnp.asarray(table.half_pelvis_width_m, float), g=jnp.asarray(g, float),
+        other_mass_kg=jnp.asarray(table.other_mass_kg, float),
     )
     return params.validate()
 

@@ -32,6 +32,9 @@ _COMAN_LEG = dict(
 _COMAN_UPPER_MASS_KG = (7.65, 2.22, 2.22, 1.04, 1.04)
 _COMAN_TORSO_COM_M = 0.189619
 _COMAN_HALF_PELVIS_M = 0.0636
+# The robot's nominal total mass (brief section 1; the seed authors' M of the
+# DLQR torque cost) exceeds the listed segments by the pelvis the 3LP leaves out.
+COMAN_TOTAL_MASS_KG = 28.5
 
 
 def coman_table() -> SegmentTable:
@@ -45,6 +48,7 @@ def coman_table() -> SegmentTable:
         upper_mass_kg=jnp.asarray(_COMAN_UPPER_MASS_KG),
         upper_com_height_m=jnp.full(len(_COMAN_UPPER_MASS_KG), _COMAN_TORSO_COM_M),
         half_pelvis_width_m=jnp.asarray(_COMAN_HALF_PELVIS_M),
+        other_mass_kg=jnp.asarray(COMAN_TOTAL_MASS_KG - sum(_COMAN_UPPER_MASS_KG) - 2.0 * sum(_COMAN_LEG["masses_kg"])),
     ).validate()
 
 
@@ -104,6 +108,7 @@ def human_table(height_m: float, mass_kg: float) -> SegmentTable:
         upper_mass_kg=jnp.asarray([u[0] for u in upper]),
         upper_com_height_m=jnp.asarray([u[1] for u in upper]),
         half_pelvis_width_m=jnp.asarray(_HALF_HIP_SPACING * H),
+        other_mass_kg=jnp.asarray(0.0),  # de Leva's fractions sum to the whole body
     ).validate()
 
 

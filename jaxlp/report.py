@@ -25,7 +25,8 @@ def info_report(robot: str = "coman", step_time_s: float = 0.4, speed_mps: float
     params = get_params(robot, height_m=height_m, mass_kg=mass_kg)
     width = 2.0 * float(params.pw) if step_width_m is None else step_width_m
     g = gait_mod.periodic_gait(params, step_time_s, speed_mps, width)
-    ctrl = control.constrained_dlqr(params, step_time_s)
+    weights = control.default_weights(params)
+    ctrl = control.constrained_dlqr(params, step_time_s, weights)
     ev_open = np.linalg.eigvals(np.asarray(ctrl.emap.A))
     ev_closed = np.linalg.eigvals(np.asarray(control.closed_loop_map(ctrl)))
     gains = {name: [] for name in ERROR_NAMES}
@@ -39,6 +40,8 @@ def info_report(robot: str = "coman", step_time_s: float = 0.4, speed_mps: float
         "step_time_s": step_time_s,
         "speed_mps": speed_mps,
         "params": {k: p[k] for k in ("m1", "m2", "h1", "h2", "h3", "I2", "pw")},
+        "conventions": {"exchange": "authors", "cost": weights.form,
+                        "cost_mass_kg": float(params.total_mass_kg)},
         "eigenvalues_open_loop": _pairs(ev_open),
         "eigenvalues_closed_loop": _pairs(ev_closed),
         "gait": {
@@ -59,6 +62,9 @@ def format_table(report: dict) -> str:
     units = {"m1": "kg", "m2": "kg", "h1": "m", "h2": "m", "h3": "m", "I2": "kg m^2", "pw": "m"}
     for k, v in report["params"].items():
         lines.append(f"  {k:<4} {v:12.6g} {units[k]}")
+    c = report["conventions"]
+    lines.append(f"\nconventions: foot exchange {c['exchange']!r}, DLQR cost {c['cost']!r} "
+                 f"(torque by 1/(M g)^2, M = {c['cost_mass_kg']:g} kg)")
     for key in ("eigenvalues_open_loop", "eigenvalues_closed_loop"):
         lines.append(f"\n{key.replace('_', ' ')} (sagittal step-to-step error map)")
         for re, im in report[key]:

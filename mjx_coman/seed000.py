@@ -52,6 +52,8 @@ from mjx_coman.controllers.base import joystick
 STEP_TIME_S = 0.4
 PUSH_DURATION_S = 0.1
 PUSH_TABLE_IMPULSES_NS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0)  # default grid, 1 N s apart
+MARGIN_NS = 0.5  # the margin over twice the open loop's impulse that the push table counts per phase
+DIRECTIONS = ("forward", "backward", "left", "right")
 
 
 FAMILY = "time-projection"
@@ -164,14 +166,43 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
                 "largest_recovered_ns_per_phase": largest.tolist(),
                 "recovered_at_every_phase_ns": every[(c, dname)],
             }
+            out["tables"][f"{c}/{dname}"]["median_steps_to_recover"] = median_steps_to_recover(
+                out["tables"][f"{c}/{dname}"])
     if FAMILY in variants and "open-loop" in variants:
         out["claim"] = {}
         for dname in directions:
             cl, ol = every[(FAMILY, dname)], every[("open-loop", dname)]
-            out["claim"][dname] = {"closed_loop_ns": cl, "open_loop_ns": ol,
-                                   "ratio": (cl / ol) if ol > 0 else None, "holds": bool(cl >= 2 * ol and cl > 0)}
+            cl_ph = np.asarray(out["tables"][f"{FAMILY}/{dname}"]["largest_recovered_ns_per_phase"])
+            ol_ph = np.asarray(out["tables"][f"open-loop/{dname}"]["largest_recovered_ns_per_phase"])
+            margin = cl_ph - 2.0 * ol_ph
+            out["claim"][dname] = {
+                "closed_loop_ns": cl, "open_loop_ns": ol, "ratio": (cl / ol) if ol > 0 else None,
+                "holds": bool(cl >= 2 * ol and cl > 0),
+                "ratio_per_phase": [float(c / o) if o > 0 else None for c, o in zip(cl_ph, ol_ph)],
+                "twice_open_loop_at_every_phase": bool(np.all(margin >= 0) and np.all(cl_ph > 0)),
+                "phases_with_half_ns_margin": int(np.sum(margin >= MARGIN_NS - 1e-9)),
+            }
     out["raw"] = res
     return out
+
+
+def median_steps_to_recover(table: dict) -> float | None:
+    """Median ground-truth steps to recover over the settled pushes of one push-table entry (None if none)."""
+    s2r = np.asarray(table["steps_to_recover"])
+    settled = s2r[s2r > 0]
+    return float(np.median(settled)) if settled.size else None
+
+
+def impulse_grid(step_ns: float, max_ns: float) -> list[float]:
+    """``step, 2 step, ..., max`` (N s): the push table's grid at a resolution.
+
+    Raises:
+        ValueError: a non-finite or non-positive step or a maximum below it.
+    """
+    if not (math.isfinite(step_ns) and step_ns > 0 and math.isfinite(max_ns) and max_ns >= step_ns):
+        raise ValueError(f"impulse step must be positive and at most the maximum, got step {step_ns} and max {max_ns}")
+    n = int(math.floor(max_ns / step_ns + 1e-9))
+    return [round(step_ns * (k + 1), 9) for k in range(n)]
 
 
 def _relative_footsteps(res, skip: int = 1) -> list[dict]:
@@ -317,6 +348,16 @@ def _floats(text: str) -> list[float]:
     return vals
 
 
+def _names(allowed):
+    def parse(text: str) -> list[str]:
+        vals = [v.strip() for v in text.split(",") if v.strip()]
+        bad = [v for v in vals if v not in allowed]
+        if not vals or bad or len(set(vals)) != len(vals):
+            raise argparse.ArgumentTypeError(f"expected distinct names of {','.join(allowed)}, got {text!r}")
+        return vals
+    return parse
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items() if k != "raw"}
@@ -339,7 +380,9 @@ def _run(args):
             sys.stderr.write("python -m mjx_coman.seed000: error: --phases, --steps-after >= 1, "
                              "--push-step >= 0 and --impulses > 0 required\n")
             return None
-        res = push_table(args.impulses, args.phases, args.push_step, args.steps_after, seed=args.seed, overrides=ov)
+        imp = args.impulses if args.impulse_step is None else impulse_grid(args.impulse_step, args.max_impulse)
+        res = push_table(imp, args.phases, args.push_step, args.steps_after, tuple(args.directions),
+                         tuple(args.variants), seed=args.seed, overrides=ov)
     elif args.experiment == "identify":
         res = identify(args.seconds, args.settle, args.seed, overrides=ov)
     else:
@@ -360,6 +403,13 @@ def main(argv=None) -> int:
     pt.add_argument("--phases", type=int, default=8)
     pt.add_argument("--push-step", type=int, default=4)
     pt.add_argument("--steps-after", type=int, default=8)
+    pt.add_argument("--impulse-step", type=float, default=None,
+                    help="N s: the grid step, max-impulse/step, ..., max-impulse (instead of --impulses)")
+    pt.add_argument("--max-impulse", type=float, default=10.0, help="N s, with --impulse-step")
+    pt.add_argument("--directions", type=_names(DIRECTIONS), default=["forward", "backward"],
+                    help=f"comma-separated, of {','.join(DIRECTIONS)}")
+    pt.add_argument("--variants", type=_names(VARIANTS + ("dlqr",)), default=[FAMILY, "open-loop"],
+                    help="comma-separated registered time-projection variants")
     for name in ("drag", "scatter", "speeds", "ten"):  # "ten": all three in one batch
         sp = sub.add_parser(name)
         sp.add_argument("--seconds", type=float, default=10.0)

@@ -241,9 +241,7 @@ def rollout(params: ThreeLPParams, c: Constants, lateral_deadzone, scenario: Sce
                 duration_s=jnp.asarray(spec.push_duration_s, dtype),
                 force_n=(scenario.impulse_ns / spec.push_duration_s).astype(dtype),
                 direction_rad=scenario.direction_rad.astype(dtype))
-    w = control.default_weights(params)
-    weights = control.LQRWeights(w.position * c.weight_scale[0], w.velocity * c.weight_scale[1],
-                                 w.torque * c.weight_scale[2])
+    weights = control.default_weights(params).scaled(c.weight_scale)
     return simulate(params, push, spec.sim_spec(), weights=weights,
                     sensing=sensing_of(c, lateral_deadzone, scenario.noise_std_m, scenario.bias_m),
                     limits=limits, key=scenario.key)

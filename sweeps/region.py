@@ -99,8 +99,7 @@ def _rollout(params: ThreeLPParams, spec: RegionSpec, constants, lateral, lane: 
                 force_n=impulse_ns / spec.push_duration_s, direction_rad=lane.direction_rad.astype(dtype))
     sensing = sensing_of(constants, lateral, lane.noise_std_m, lane.bias_m) if spec.sensing else None
     scale = constants.weight_scale if spec.sensing else jnp.asarray(spec.weight_scale, dtype)
-    w = control.default_weights(params)
-    weights = control.LQRWeights(w.position * scale[0], w.velocity * scale[1], w.torque * scale[2])
+    weights = control.default_weights(params).scaled(scale)
     r = simulate(params, push, spec.sim_spec(), weights=weights, sensing=sensing, key=lane.key)
     return failure_margin(params, r, spec, temperature=spec.temperature), r.fell
 

@@ -90,8 +90,7 @@ def _weights(params, config: SweepConfig):
     ws = _settings(config)["lqr_weight_scale"]
     if all(float(w) == 1.0 for w in ws):
         return None
-    w = control.default_weights(params)
-    return control.LQRWeights(w.position * ws[0], w.velocity * ws[1], w.torque * ws[2])
+    return control.default_weights(params).scaled(ws)
 
 
 def ticks_per_rollout(config: SweepConfig) -> int:

@@ -33,6 +33,11 @@ def test_report_eigenvalues(report):
     closed_mag = max(abs(complex(*z)) for z in report["eigenvalues_closed_loop"])
     assert len(report["eigenvalues_open_loop"]) == 4
     assert open_mag > 1.0 > closed_mag
+    # the authors' foot exchange: a real unstable eigenvalue above 3 and translation invariance's 1
+    assert report["conventions"] == {"exchange": "authors", "cost": "authors", "cost_mass_kg": pytest.approx(28.5)}
+    unstable = [z for z in report["eigenvalues_open_loop"] if abs(complex(*z)) > 1.5]
+    assert len(unstable) == 1 and unstable[0][0] > 3.0 and unstable[0][1] == pytest.approx(0.0, abs=1e-9)
+    assert min(abs(complex(*z) - 1.0) for z in report["eigenvalues_open_loop"]) < 1e-9
 
 
 def test_report_footstep_gains(report):

@@ -23,6 +23,18 @@ def test_largest_recovered_per_phase_and_every_phase():
     assert per_phase.min() == 1.0
 
 
+def test_impulse_grid_at_a_resolution():
+    assert ex.impulse_grid(0.5, 2.0) == [0.5, 1.0, 1.5, 2.0]
+    assert ex.impulse_grid(0.3, 1.0) == pytest.approx([0.3, 0.6, 0.9])
+    with pytest.raises(ValueError, match="step -1"):
+        ex.impulse_grid(-1.0, 2.0)
+
+
+def test_median_steps_to_recover_counts_settled_pushes_only():
+    assert ex.median_steps_to_recover({"steps_to_recover": [[2, 3, -1], [4, -1, -1]]}) == 3.0
+    assert ex.median_steps_to_recover({"steps_to_recover": [[-1, -1]]}) is None
+
+
 def test_footstep_spread():
     rel = {"left": [[0.01, 0.07], [0.03, 0.08], [0.02, 0.09]], "right": [[0.0, -0.07], [0.0, -0.07]]}
     s = ex.footstep_spread_m(rel)
@@ -49,6 +61,9 @@ def test_pushes_start_after_the_start_up_phase():
 @pytest.mark.parametrize("args", [["push-table", "--impulses", "0,2"], ["push-table", "--phases", "0"],
                                   ["drag", "--seconds", "-1"], ["identify", "--seconds", "1", "--settle", "5"],
                                   ["push-table", "--set", "hip_attack=2"], ["ten", "--set", "nope=1"],
+                                  ["push-table", "--impulse-step", "0"], ["push-table", "--impulse-step", "nan"],
+                                  ["push-table", "--impulse-step", "2", "--max-impulse", "1"],
+                                  ["push-table", "--directions", "up"], ["push-table", "--variants", "joint-pd"],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:

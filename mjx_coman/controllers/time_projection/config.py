@@ -233,8 +233,7 @@ def _design_tables(robot: str, T: float, n: int, dt: float, step_width_m: float,
         per_mps = ((nom1 - nom0) / 0.1).at[:, 1].set(0.0)  # only the sagittal gait depends on the speed (linearly)
         weights = None
         if not np.allclose(ws, 1.0):
-            w = control.default_weights(p)
-            weights = control.LQRWeights(w.position * ws[0], w.velocity * ws[1], w.torque * ws[2])
+            weights = control.default_weights(p).scaled(ws)
         ctrl = control.constrained_dlqr(p, T, weights)
         return nom0, per_mps, projection.gain_table(p, ctrl, T, n).footstep
 
