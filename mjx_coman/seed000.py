@@ -1,6 +1,6 @@
 """The walking experiments of seed 000 on the simulated COMAN, each printing JSON.
 
-``python -m mjx_coman.seed000 {push-table,drag,scatter,speeds,ten,identify} [--set KEY=VALUE ...] [options] [--json]``
+``python -m mjx_coman.seed000 {push-table,drag,scatter,speeds,ten,ablate,identify} [--set KEY=VALUE ...] [options] [--json]``
 
 * ``push-table``: 0.1 s pushes on the torso, forward and backward, starting
   at 8 phases of one step of the in-place gait, over a grid of impulses, for
@@ -20,6 +20,9 @@
   at every touchdown (seed Figure 14) and its spread.
 * ``speeds``: closed-loop walking at 0.1 and 0.2 m/s (seed Figure 19): mean speed.
 * ``ten``: ``scatter``, ``drag`` and ``speeds`` in one batch (one compilation).
+* ``ablate``: one block switched at a time (dead-zones, attack-angle share,
+  filter): in-place drift over 20 s and steps to recover from forward and
+  backward pushes, ground truth.
 * ``identify``: dead-zone thresholds and knee deflections from the open-loop
   in-place walk (seed Figures 7 and 9;
   :mod:`mjx_coman.controllers.time_projection.identification`).
@@ -285,6 +288,73 @@ def ten_second_walks(seconds: float = 10.0, drag_forces_n=(1.0, 0.0, -1.0), spee
     return out
 
 
+# Each switch is a set of overrides of the time-projection settings; "default" is the registered configuration.
+SWITCHES = {
+    "default": {},
+    "no-deadzone": {"deadzone": (1e-7, 1e-7, 1e-7, 1e-7)},
+    "identified-deadzone": {"deadzone": (0.0169, 0.0076, 0.152, 0.043)},
+    "attack-all": {"hip_attack": 1.0},
+    "attack-half": {"hip_attack": 0.5},
+    "light-filter": {"zeta": 0.3},
+    "no-filter": {"zeta": 1.0},
+    "open-loop": {"footstep_gain": 0.0},
+    "pelvis-over-foot": {"pelvis_offset_m": 0.0},
+    "pelvis-back": {"pelvis_offset_m": -0.05},
+    "stiff-ankle": {"ankle_compliance": 0.0},
+    "stance-feedback": {"stance_feedback": 0.5},
+    "ankle-compliance-0.3": {"ankle_compliance": 0.3},
+    "ankle-compliance-0.5": {"ankle_compliance": 0.5},
+}
+
+
+def ablate(switches: dict | None = None, seconds: float = 20.0, impulse_ns: float = 4.5,
+           phases=(0.0, 0.25, 0.5, 0.75), push_step: int = 12, seed: int = 0, overrides: dict | None = None) -> dict:
+    """Switch one block at a time: in-place drift and steps to recover of forward and backward pushes.
+
+    Every switch walks in place for ``seconds`` unpushed (the drift is the ground-truth CoM speed over the
+    last half of its touchdowns, ``mean_speed_mps``) and once per push: 0.1 s, ``impulse_ns`` forward and
+    backward, at each phase of step ``push_step`` (12: after the start-up transient, which takes about 4 s
+    from standing). One batch of one compiled walk.
+    """
+    switches = SWITCHES if switches is None else switches
+    if not (math.isfinite(impulse_ns) and impulse_ns > 0):
+        raise ValueError(f"impulse_ns={impulse_ns} must be finite and positive")
+    if not (math.isfinite(seconds) and seconds > push_start_s(push_step + 10, 0.0)):
+        raise ValueError(f"seconds={seconds} leaves fewer than 10 steps after the push step")
+    env = ro.walking_env_params()
+    spec = ro.WalkSpec(seconds=seconds)
+    rows, cfgs, pushes = [], [], []
+    for name, ov in switches.items():
+        cfg = config(FAMILY, **{**(overrides or {}), **ov})
+        for d, ang in (("none", 0.0), ("forward", 0.0), ("backward", math.pi)):
+            for ph in (phases if d != "none" else (0.0,)):
+                rows.append((name, d, ph))
+                cfgs.append(cfg)
+                pushes.append(ro.no_push() if d == "none" else ro.make_push(
+                    float(push_start_s(push_step, ph)), PUSH_DURATION_S, impulse_ns=impulse_ns, direction_rad=ang))
+    t0 = time.perf_counter()
+    res = run_batch(env, cfgs, pushes, spec, seed, chunk=min(len(rows), 64))
+    out = {"seconds": seconds, "impulse_ns": impulse_ns, "phases": list(phases), "rollouts": len(rows),
+           "wall_s": round(time.perf_counter() - t0, 1), "switches": {}}
+    for name, ov in switches.items():
+        idx = [i for i, r in enumerate(rows) if r[0] == name]
+        free = idx[0]
+        s2r = np.array([int(res.steps_to_recover[i]) for i in idx[1:]])
+        fell = np.array([bool(res.fell[i]) for i in idx[1:]])
+        k = int(res.touchdowns[free])
+        sv = res.step_velocity_mps[free, k // 2:k]  # the unpushed walk's second half: its scatter about the cycle
+        out["switches"][name] = {
+            "overrides": {k: list(v) if isinstance(v, tuple) else v for k, v in ov.items()},
+            "in_place_fell": bool(res.fell[free]), "in_place_drift_mps": float(res.mean_speed_mps[free]),
+            "in_place_step_velocity_std_mps": np.nanstd(sv, axis=0).tolist() if sv.size else None,
+            "pushes_fell": int(fell.sum()), "pushes_settled": int((s2r > 0).sum()), "pushes": len(s2r),
+            "steps_to_recover": s2r.tolist(),
+            "median_steps_to_recover": float(np.median(s2r[s2r > 0])) if np.any(s2r > 0) else None,
+        }
+    out["raw"] = res
+    return out
+
+
 def open_loop_walk(env_params, *, seconds: float = 10.0, seed: int = 0, overrides: dict | None = None):
     """The seed's identification walk, recorded every tick: open loop, in place (``SaveAt(trace, every=1)``).
 
@@ -383,6 +453,9 @@ def _run(args):
         imp = args.impulses if args.impulse_step is None else impulse_grid(args.impulse_step, args.max_impulse)
         res = push_table(imp, args.phases, args.push_step, args.steps_after, tuple(args.directions),
                          tuple(args.variants), seed=args.seed, overrides=ov)
+    elif args.experiment == "ablate":
+        names = args.switches or list(SWITCHES)
+        res = ablate({n: SWITCHES[n] for n in names}, args.seconds, args.impulse, seed=args.seed, overrides=ov)
     elif args.experiment == "identify":
         res = identify(args.seconds, args.settle, args.seed, overrides=ov)
     else:
@@ -415,6 +488,11 @@ def main(argv=None) -> int:
         sp.add_argument("--seconds", type=float, default=10.0)
         sp.add_argument("--drag-forces", type=_floats, default=[1.0, 0.0, -1.0], help="N (x; + forward)")
         sp.add_argument("--speeds", type=_floats, default=[0.1, 0.2], help="m/s")
+    ab = sub.add_parser("ablate")
+    ab.add_argument("--switches", type=_names(tuple(SWITCHES)), default=None,
+                    help=f"comma-separated, of {','.join(SWITCHES)} (default: all)")
+    ab.add_argument("--seconds", type=float, default=20.0)
+    ab.add_argument("--impulse", type=float, default=4.5, help="N s, forward and backward")
     idp = sub.add_parser("identify")
     idp.add_argument("--seconds", type=float, default=10.0)
     idp.add_argument("--settle", type=float, default=2.0)

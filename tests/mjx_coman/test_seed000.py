@@ -64,6 +64,8 @@ def test_pushes_start_after_the_start_up_phase():
                                   ["push-table", "--impulse-step", "0"], ["push-table", "--impulse-step", "nan"],
                                   ["push-table", "--impulse-step", "2", "--max-impulse", "1"],
                                   ["push-table", "--directions", "up"], ["push-table", "--variants", "joint-pd"],
+                                  ["ablate", "--switches", "nope"], ["ablate", "--impulse", "0"],
+                                  ["ablate", "--seconds", "3"],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:

@@ -27,7 +27,13 @@ from mjx_coman.controllers.time_projection.open_loop import FIXED_LIFT_M, ROLL_A
 from mjx_coman.env import standing_posture
 
 DEFAULT_STEP_WIDTH_M = 0.1452  # the crouched stance's feet distance (hips 2 x 0.0726 m apart)
-DEFAULT_DEADZONE = (0.004, 0.004, 0.04, 0.04)  # [e1 m, e2 m, e1_dot m/s, e2_dot m/s], Figure-9-like
+# [e1 m, e2 m, e1_dot m/s, e2_dot m/s], Figure-9-like. Seed 000 sets each to the standard deviation of its error
+# in open-loop in-place walking; identified here (`python -m mjx_coman.seed000 identify`) that is (0.0169, 0.0076,
+# 0.152, 0.043). Kept because the identified widths do no better on the push table at 0.5 N s (`push-table
+# --impulse-step 0.5 --max-impulse 12 --variants time-projection --set deadzone=...`): backward 6.5 N s at every
+# phase against 7.0, forward 6.5 both, median steps to recover 4/5 against 4/4; in place they drift 0.080 m/s
+# against 0.072 and settle a 4.5 N s push after a median of 8 steps against 7 (`seed000 ablate`).
+DEFAULT_DEADZONE = (0.004, 0.004, 0.04, 0.04)
 DEFAULT_KNEE_DEFLECTION_RAD = 0.012  # mu of eq. 21: knee link - motor at full support, open-loop in-place walk
 DEFAULT_ANKLE_COMPLIANCE = 0.675  # stance ankle keeps 32.5 % of its ~290 N m/rad (see motor_targets_block)
 DEFAULT_HIP_ATTACK = 0.75  # share of the footstep adjustment applied as the seed's attack angle on the swing hip
