@@ -56,9 +56,12 @@ One pure ``init``/``step`` pair of the controller interface
    (eq. 24; ``pitch`` the IMU pelvis pitch, forward lean > 0). The stance
    ankle pitch target blends in the measured link angle
    (``ankle_compliance``, :func:`motor_targets_block`): the simulated ankle
-   is about ten times stiffer than the seed's worn one, and at full stiffness
-   it throws the body over every adjusted footstep, which turned the time
-   projection's corrections into a forward walk of 0.3 m/s in place.
+   is about ten times stiffer than the seed's worn one. With the former
+   diagonal DLQR cost the stiff ankle threw the body over every adjusted
+   footstep (a forward walk of 0.3 m/s in place); with the authors' cost it
+   drifts 0.009 m/s in place, but the open loop then recovers nearly what the
+   closed loop does (README, "Seed 000 on the simulated COMAN"), so the
+   default keeps the compliant ankle the seed's claims were made with.
 
 Variants are configurations of the same compiled step (registered in
 :mod:`mjx_coman.controllers`): ``time-projection`` (the closed loop),
