@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from mjx_coman import seed000 as ex
+from mjx_coman.seed000 import cli
 
 
 @pytest.mark.parametrize(
@@ -69,7 +70,7 @@ def test_pushes_start_after_the_start_up_phase():
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:
-        raise SystemExit(ex.main(args))
+        raise SystemExit(cli.main(args))
     assert exc.value.code == 2
     assert capsys.readouterr().err.count("\n") == 1
 

@@ -1,0 +1,83 @@
+"""What every seed 000 experiment shares: the variants, push timing and one batched, compiled walk."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_coman import controllers
+from mjx_coman import rollout as ro
+from mjx_coman.controllers.base import joystick
+
+STEP_TIME_S = 0.4
+PUSH_DURATION_S = 0.1
+PUSH_TABLE_IMPULSES_NS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0)  # default grid, 1 N s apart
+MARGIN_NS = 0.5  # the margin over twice the open loop's impulse that the push table counts per phase
+DIRECTIONS = ("forward", "backward", "left", "right")
+
+
+FAMILY = "time-projection"
+VARIANTS = ("time-projection", "open-loop", "no-deadzone")
+
+
+def _stack(items):
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *items)
+
+
+def config(name: str = FAMILY, **overrides):
+    """The config of a registered time-projection variant (``time-projection``, ``open-loop``, ``no-deadzone``, ``dlqr``)."""
+    ctrl, cfg = controllers.load(name, overrides)
+    if ctrl.core() != controllers.get(FAMILY).core():
+        raise ValueError(f"{name!r} is not a time-projection variant")
+    return cfg
+
+
+def push_start_s(push_step, push_phase, cfg=None) -> float:
+    """Start of a push at phase ``push_phase`` of walking step ``push_step`` (after the start-up phase), s."""
+    gait = controllers.get(FAMILY).gait(config() if cfg is None else cfg)
+    return gait.first_step_s + (np.asarray(push_step) + push_phase) * gait.step_time_s
+
+
+@functools.lru_cache(maxsize=None)
+def _walker(spec, save):
+    return ro.batched_walk(controllers.get(FAMILY), spec, save, config_axes=0, joystick_axes=0)
+
+
+def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64, speeds=None, save=None):
+    """Walk every (config, push, speed) of the lists, in chunks of one compiled vmap.
+
+    Returns:
+        The :class:`~mjx_coman.rollout.WalkResult` with a leading batch axis, as NumPy arrays.
+    """
+    n = len(configs)
+    if n != len(pushes) or n == 0:
+        raise ValueError(f"need as many pushes as configs (> 0), got {len(pushes)} and {n}")
+    speeds = [0.0] * n if speeds is None else list(speeds)
+    size = min(chunk, n)
+    fn = _walker(spec, save)
+    keys = jax.random.split(jax.random.PRNGKey(seed), n)
+    outs = []
+    for i in range(0, n, size):
+        idx = list(range(i, min(i + size, n)))
+        idx += [idx[-1]] * (size - len(idx))  # pad the last chunk: one compiled batch size
+        joy = _stack([joystick(speeds[j]) for j in idx])
+        res = fn(_stack([configs[j] for j in idx]), env_params, _stack([pushes[j] for j in idx]),
+                 keys[np.array(idx)], joy)
+        outs.append(jax.tree_util.tree_map(np.asarray, res))
+    return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs)[:n], *outs)
+
+
+def largest_recovered(impulses, recovered) -> np.ndarray:
+    """Largest impulse below which every impulse of the grid was recovered (0 if the smallest fell).
+
+    Args:
+        impulses: (m,) increasing grid.
+        recovered: (..., m) bool.
+    """
+    rec = np.asarray(recovered, bool)
+    ok = np.cumprod(rec, axis=-1).astype(bool)
+    grid = np.concatenate([[0.0], np.asarray(impulses, float)])
+    return grid[ok.sum(axis=-1)]
