@@ -39,9 +39,10 @@ from __future__ import annotations
 from mjx_coman.seed000.common import (DIRECTIONS, FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS,
                                      STEP_TIME_S, VARIANTS, config, largest_recovered, push_start_s, run_batch)
 from mjx_coman.seed000.push_table import impulse_grid, median_steps_to_recover, push_table
-from mjx_coman.seed000.walks import (SWITCHES, ablate, footstep_spread_m, identify, open_loop_walk,
+from mjx_coman.seed000.walks import (SWITCHES, ablate, footstep_spread_m, identify, open_loop_walk, relative_footsteps,
                                     ten_second_walks)
 
 __all__ = ["DIRECTIONS", "FAMILY", "MARGIN_NS", "PUSH_DURATION_S", "PUSH_TABLE_IMPULSES_NS", "STEP_TIME_S", "SWITCHES",
            "VARIANTS", "ablate", "config", "footstep_spread_m", "identify", "impulse_grid", "largest_recovered",
-           "median_steps_to_recover", "open_loop_walk", "push_start_s", "push_table", "run_batch", "ten_second_walks"]
+           "median_steps_to_recover", "open_loop_walk", "push_start_s", "push_table", "relative_footsteps", "run_batch",
+           "ten_second_walks"]

@@ -14,7 +14,7 @@ from mjx_coman.controllers.base import joystick
 from mjx_coman.seed000.common import FAMILY, PUSH_DURATION_S, VARIANTS, config, push_start_s, run_batch
 
 
-def _relative_footsteps(res, skip: int = 1) -> list[dict]:
+def relative_footsteps(res, skip: int = 1) -> list[dict]:
     """The landing foot minus the pelvis at each touchdown after the first ``skip``, split by foot; per rollout."""
     rel = res.log.foot_m - res.log.pelvis_m  # (b, n, 3)
     out = []
@@ -65,7 +65,7 @@ def ten_second_walks(seconds: float = 10.0, drag_forces_n=(1.0, 0.0, -1.0), spee
     t0 = time.perf_counter()
     res = run_batch(env, cfgs, pushes, spec, seed, speeds=vs, save=save)
     wall = time.perf_counter() - t0
-    rel = _relative_footsteps(res)
+    rel = relative_footsteps(res)
     out = {"seconds": seconds, "rollouts": len(cfgs), "wall_s": round(wall, 1), "scatter": {}, "drag": {},
            "speeds": {}}
     for b, (kind, val) in enumerate(names):
