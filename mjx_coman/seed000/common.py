@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import functools
+import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm import tqdm
 
 from mjx_coman import controllers
 from mjx_coman import rollout as ro
@@ -60,6 +62,7 @@ def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64,
     fn = _walker(spec, save)
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
     outs = []
+    bar = tqdm(total=n, unit="walk", file=sys.stderr, disable=None, desc="seed000", dynamic_ncols=True)  # off without a TTY
     for i in range(0, n, size):
         idx = list(range(i, min(i + size, n)))
         idx += [idx[-1]] * (size - len(idx))  # pad the last chunk: one compiled batch size
@@ -67,6 +70,8 @@ def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64,
         res = fn(_stack([configs[j] for j in idx]), env_params, _stack([pushes[j] for j in idx]),
                  keys[np.array(idx)], joy)
         outs.append(jax.tree_util.tree_map(np.asarray, res))
+        bar.update(min(size, n - i))
+    bar.close()
     return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs)[:n], *outs)
 
 
