@@ -37,8 +37,9 @@ pushes, keys and joysticks). Each function returns a dict of plain numbers
 from __future__ import annotations
 
 from mjx_coman.seed000.common import (DIRECTIONS, FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS,
-                                     STEP_TIME_S, VARIANTS, config, largest_recovered, push_start_s, run_batch)
-from mjx_coman.seed000.push_table import impulse_grid, median_steps_to_recover, push_table
+                                     STEP_TIME_S, VARIANTS, config, largest_recovered, median_steps_to_recover,
+                                     push_start_s, run_batch)
+from mjx_coman.seed000.push_table import impulse_grid, push_table
 from mjx_coman.seed000.walks import (SWITCHES, ablate, footstep_spread_m, identify, open_loop_walk, relative_footsteps,
                                     ten_second_walks)
 

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import sys
 
-import numpy as np
 
+from jaxlp.files import strict_json
 from mjx_coman import controllers
 from mjx_coman.seed000.common import DIRECTIONS, FAMILY, PUSH_TABLE_IMPULSES_NS, VARIANTS, config
 from mjx_coman.seed000.push_table import impulse_grid, push_table
@@ -40,20 +39,6 @@ def _names(allowed):
             raise argparse.ArgumentTypeError(f"expected distinct names of {','.join(allowed)}, got {text!r}")
         return vals
     return parse
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items() if k != "raw"}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return None if not math.isfinite(float(x)) else float(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 def _run(args):
@@ -125,7 +110,7 @@ def main(argv=None) -> int:
         return 2
     if res is None:
         return 2
-    print(json.dumps(_jsonable(res), indent=2 if args.json else None))
+    print(strict_json({k: v for k, v in res.items() if k != "raw"}, indent=2 if args.json else None))
     return 0
 
 

@@ -86,3 +86,10 @@ def largest_recovered(impulses, recovered) -> np.ndarray:
     ok = np.cumprod(rec, axis=-1).astype(bool)
     grid = np.concatenate([[0.0], np.asarray(impulses, float)])
     return grid[ok.sum(axis=-1)]
+
+
+def median_steps_to_recover(steps_to_recover) -> float | None:
+    """Median ground-truth steps to recover over the settled pushes (``> 0``) of an array (None if none)."""
+    s2r = np.asarray(steps_to_recover)
+    settled = s2r[s2r > 0]
+    return float(np.median(settled)) if settled.size else None

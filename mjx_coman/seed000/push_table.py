@@ -9,7 +9,7 @@ import numpy as np
 
 from mjx_coman import rollout as ro
 from mjx_coman.seed000.common import (FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS, config,
-                                     largest_recovered, push_start_s, run_batch)
+                                     largest_recovered, median_steps_to_recover, push_start_s, run_batch)
 
 
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
@@ -46,10 +46,10 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
     out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,
            "push_duration_s": PUSH_DURATION_S, "seconds": seconds, "rollouts": len(ctrl),
            "wall_s": round(wall, 1), "tables": {}}
-    every = {}
+    every, per_phase = {}, {}
     for i, c in enumerate(variants):
         for j, dname in enumerate(directions):
-            largest = largest_recovered(imp, ~fell[i, j])
+            largest = per_phase[(c, dname)] = largest_recovered(imp, ~fell[i, j])
             every[(c, dname)] = float(largest.min())
             out["tables"][f"{c}/{dname}"] = {
                 "recovered": (~fell[i, j]).astype(int).tolist(),  # [phase][impulse]: no fall in the window
@@ -57,15 +57,13 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
                 "steps_to_recover": s2r[i, j].tolist(),
                 "largest_recovered_ns_per_phase": largest.tolist(),
                 "recovered_at_every_phase_ns": every[(c, dname)],
+                "median_steps_to_recover": median_steps_to_recover(s2r[i, j]),
             }
-            out["tables"][f"{c}/{dname}"]["median_steps_to_recover"] = median_steps_to_recover(
-                out["tables"][f"{c}/{dname}"])
     if FAMILY in variants and "open-loop" in variants:
         out["claim"] = {}
         for dname in directions:
             cl, ol = every[(FAMILY, dname)], every[("open-loop", dname)]
-            cl_ph = np.asarray(out["tables"][f"{FAMILY}/{dname}"]["largest_recovered_ns_per_phase"])
-            ol_ph = np.asarray(out["tables"][f"open-loop/{dname}"]["largest_recovered_ns_per_phase"])
+            cl_ph, ol_ph = per_phase[(FAMILY, dname)], per_phase[("open-loop", dname)]
             margin = cl_ph - 2.0 * ol_ph
             out["claim"][dname] = {
                 "closed_loop_ns": cl, "open_loop_ns": ol, "ratio": (cl / ol) if ol > 0 else None,
@@ -76,13 +74,6 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
             }
     out["raw"] = res
     return out
-
-
-def median_steps_to_recover(table: dict) -> float | None:
-    """Median ground-truth steps to recover over the settled pushes of one push-table entry (None if none)."""
-    s2r = np.asarray(table["steps_to_recover"])
-    settled = s2r[s2r > 0]
-    return float(np.median(settled)) if settled.size else None
 
 
 def impulse_grid(step_ns: float, max_ns: float) -> list[float]:

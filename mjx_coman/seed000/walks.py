@@ -11,7 +11,8 @@ import numpy as np
 from mjx_coman import controllers
 from mjx_coman import rollout as ro
 from mjx_coman.controllers.base import joystick
-from mjx_coman.seed000.common import FAMILY, PUSH_DURATION_S, VARIANTS, config, push_start_s, run_batch
+from mjx_coman.seed000.common import (FAMILY, PUSH_DURATION_S, VARIANTS, config, median_steps_to_recover, push_start_s,
+                                     run_batch)
 
 
 def relative_footsteps(res, skip: int = 1) -> list[dict]:
@@ -155,7 +156,7 @@ def ablate(switches: dict | None = None, seconds: float = 20.0, impulse_ns: floa
             "in_place_step_velocity_std_mps": np.nanstd(sv, axis=0).tolist() if sv.size else None,
             "pushes_fell": int(fell.sum()), "pushes_settled": int((s2r > 0).sum()), "pushes": len(s2r),
             "steps_to_recover": s2r.tolist(),
-            "median_steps_to_recover": float(np.median(s2r[s2r > 0])) if np.any(s2r > 0) else None,
+            "median_steps_to_recover": median_steps_to_recover(s2r),
         }
     out["raw"] = res
     return out

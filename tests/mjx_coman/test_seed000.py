@@ -32,8 +32,8 @@ def test_impulse_grid_at_a_resolution():
 
 
 def test_median_steps_to_recover_counts_settled_pushes_only():
-    assert ex.median_steps_to_recover({"steps_to_recover": [[2, 3, -1], [4, -1, -1]]}) == 3.0
-    assert ex.median_steps_to_recover({"steps_to_recover": [[-1, -1]]}) is None
+    assert ex.median_steps_to_recover([[2, 3, -1], [4, -1, -1]]) == 3.0
+    assert ex.median_steps_to_recover([[-1, -1]]) is None
 
 
 def test_footstep_spread():
