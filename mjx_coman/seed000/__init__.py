@@ -37,13 +37,13 @@ pushes, keys and joysticks). Each function returns a dict of plain numbers
 from __future__ import annotations
 
 from mjx_coman.seed000.common import (DIRECTIONS, FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS,
-                                     STEP_TIME_S, VARIANTS, config, largest_recovered, median_steps_to_recover,
-                                     push_start_s, run_batch)
+                                     STEP_TIME_S, SUPPLY_V, VARIANTS, config, largest_recovered,
+                                     median_steps_to_recover, plant, push_start_s, run_batch)
 from mjx_coman.seed000.push_table import impulse_grid, push_table
 from mjx_coman.seed000.walks import (SWITCHES, ablate, footstep_spread_m, identify, open_loop_walk, relative_footsteps,
                                     ten_second_walks)
 
-__all__ = ["DIRECTIONS", "FAMILY", "MARGIN_NS", "PUSH_DURATION_S", "PUSH_TABLE_IMPULSES_NS", "STEP_TIME_S", "SWITCHES",
+__all__ = ["DIRECTIONS", "FAMILY", "MARGIN_NS", "PUSH_DURATION_S", "PUSH_TABLE_IMPULSES_NS", "STEP_TIME_S", "SUPPLY_V", "SWITCHES",
            "VARIANTS", "ablate", "config", "footstep_spread_m", "identify", "impulse_grid", "largest_recovered",
-           "median_steps_to_recover", "open_loop_walk", "push_start_s", "push_table", "relative_footsteps", "run_batch",
+           "median_steps_to_recover", "open_loop_walk", "plant", "push_start_s", "push_table", "relative_footsteps", "run_batch",
            "ten_second_walks"]

@@ -10,7 +10,7 @@ import sys
 
 from jaxlp.files import strict_json
 from mjx_coman import controllers
-from mjx_coman.seed000.common import DIRECTIONS, FAMILY, PUSH_TABLE_IMPULSES_NS, VARIANTS, config
+from mjx_coman.seed000.common import DIRECTIONS, FAMILY, PUSH_TABLE_IMPULSES_NS, SUPPLY_V, VARIANTS, config
 from mjx_coman.seed000.push_table import impulse_grid, push_table
 from mjx_coman.seed000.walks import SWITCHES, ablate, identify, ten_second_walks
 
@@ -51,7 +51,8 @@ def _run(args):
             return None
         imp = args.impulses if args.impulse_step is None else impulse_grid(args.impulse_step, args.max_impulse)
         res = push_table(imp, args.phases, args.push_step, args.steps_after, tuple(args.directions),
-                         tuple(args.variants), seed=args.seed, overrides=ov)
+                         tuple(args.variants), seed=args.seed, overrides=ov, supply_v=args.supply_v,
+                         friction_scale=args.friction_scale)
     elif args.experiment == "ablate":
         names = args.switches or list(SWITCHES)
         res = ablate({n: SWITCHES[n] for n in names}, args.seconds, args.impulse, seed=args.seed, overrides=ov)
@@ -82,6 +83,8 @@ def main(argv=None) -> int:
                     help=f"comma-separated, of {','.join(DIRECTIONS)}")
     pt.add_argument("--variants", type=_names(VARIANTS + ("dlqr",)), default=[FAMILY, "open-loop"],
                     help="comma-separated registered time-projection variants")
+    pt.add_argument("--supply-v", type=float, default=SUPPLY_V, help="motor supply voltage, V (a limit switched)")
+    pt.add_argument("--friction-scale", type=float, default=1.0, help="multiplier of the ground friction")
     for name in ("drag", "scatter", "speeds", "ten"):  # "ten": all three in one batch
         sp = sub.add_parser(name)
         sp.add_argument("--seconds", type=float, default=10.0)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import math
 import sys
 
 import jax
@@ -35,6 +37,28 @@ def config(name: str = FAMILY, **overrides):
     if ctrl.core() != controllers.get(FAMILY).core():
         raise ValueError(f"{name!r} is not a time-projection variant")
     return cfg
+
+
+SUPPLY_V = 15.0  # the motor drivers' supply (mjx_coman.actuators), V
+
+
+def plant(supply_v: float = SUPPLY_V, friction_scale: float = 1.0):
+    """The walking environment with two of its limits switched: the motor supply voltage and the ground friction.
+
+    ``friction_scale`` multiplies the sliding friction of every geom (MuJoCo combines a contact's pair by
+    the larger, so the floor's friction scales with it).
+
+    Raises:
+        ValueError: a non-finite or non-positive value, named.
+    """
+    for name, v in (("supply_v", supply_v), ("friction_scale", friction_scale)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name}={v} must be finite and positive")
+    env = ro.walking_env_params(supply_v=supply_v)
+    if friction_scale != 1.0:
+        mu = env.model.geom_friction
+        env = dataclasses.replace(env, model=env.model.replace(geom_friction=mu.at[:, 0].multiply(friction_scale)))
+    return env
 
 
 def push_start_s(push_step, push_phase, cfg=None) -> float:

@@ -8,21 +8,24 @@ import time
 import numpy as np
 
 from mjx_coman import rollout as ro
-from mjx_coman.seed000.common import (FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS, config,
-                                     largest_recovered, median_steps_to_recover, push_start_s, run_batch)
+from mjx_coman.seed000.common import (FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_TABLE_IMPULSES_NS,
+                                     SUPPLY_V, config, largest_recovered, median_steps_to_recover, plant, push_start_s,
+                                     run_batch)
 
 
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
                steps_after: int = 8, directions=("forward", "backward"), variants=("time-projection", "open-loop"),
-               seed: int = 0, chunk: int = 64, overrides: dict | None = None) -> dict:
+               seed: int = 0, chunk: int = 64, overrides: dict | None = None, supply_v: float = SUPPLY_V,
+               friction_scale: float = 1.0) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place).
 
-    ``overrides``: settings changed in every variant (``--set``).
+    ``overrides``: settings changed in every variant (``--set``); ``supply_v`` and ``friction_scale``
+    switch two limits of the plant (:func:`~mjx_coman.seed000.common.plant`).
     """
     imp = np.asarray(sorted(impulses), float)
     if imp.size == 0 or np.any(imp <= 0):
         raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
-    env = ro.walking_env_params()
+    env = plant(supply_v, friction_scale)
     phases = np.arange(n_phases) / n_phases
     seconds = float(push_start_s(push_step + 1 + steps_after, 0.0))
     spec = ro.WalkSpec(seconds=seconds)
@@ -45,7 +48,7 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
     s2r = res.steps_to_recover.reshape(shape)
     out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,
            "push_duration_s": PUSH_DURATION_S, "seconds": seconds, "rollouts": len(ctrl),
-           "wall_s": round(wall, 1), "tables": {}}
+           "wall_s": round(wall, 1), "supply_v": supply_v, "friction_scale": friction_scale, "tables": {}}
     every, per_phase = {}, {}
     for i, c in enumerate(variants):
         for j, dname in enumerate(directions):

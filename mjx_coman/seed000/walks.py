@@ -111,6 +111,10 @@ SWITCHES = {
     "stance-feedback": {"stance_feedback": 0.5},
     "ankle-compliance-0.3": {"ankle_compliance": 0.3},
     "ankle-compliance-0.5": {"ankle_compliance": 0.5},
+    "ankle-compliance-0.85": {"ankle_compliance": 0.85},
+    "free-ankle": {"ankle_compliance": 1.0},
+    "footstep-gain-1.5": {"footstep_gain": 1.5},
+    "footstep-gain-2": {"footstep_gain": 2.0},
 }
 
 

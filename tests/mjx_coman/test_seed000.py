@@ -59,6 +59,15 @@ def test_pushes_start_after_the_start_up_phase():
     assert ex.push_start_s(4, 0.5) == pytest.approx((1 + 4 + 0.5) * 0.4)
 
 
+def test_plant_switches_the_supply_voltage_and_the_ground_friction():
+    base, env = ex.plant(), ex.plant(supply_v=30.0, friction_scale=2.0)
+    assert float(base.actuator.supply_v) == ex.SUPPLY_V and float(env.actuator.supply_v) == 30.0
+    np.testing.assert_allclose(np.asarray(env.model.geom_friction)[:, 0], 2.0 * np.asarray(base.model.geom_friction)[:, 0])
+    np.testing.assert_array_equal(np.asarray(env.model.geom_friction)[:, 1:], np.asarray(base.model.geom_friction)[:, 1:])
+    with pytest.raises(ValueError, match="friction_scale=-1"):
+        ex.plant(friction_scale=-1.0)
+
+
 @pytest.mark.parametrize("args", [["push-table", "--impulses", "0,2"], ["push-table", "--phases", "0"],
                                   ["drag", "--seconds", "-1"], ["identify", "--seconds", "1", "--settle", "5"],
                                   ["push-table", "--set", "hip_attack=2"], ["ten", "--set", "nope=1"],
@@ -66,7 +75,8 @@ def test_pushes_start_after_the_start_up_phase():
                                   ["push-table", "--impulse-step", "2", "--max-impulse", "1"],
                                   ["push-table", "--directions", "up"], ["push-table", "--variants", "joint-pd"],
                                   ["ablate", "--switches", "nope"], ["ablate", "--impulse", "0"],
-                                  ["ablate", "--seconds", "3"],
+                                  ["ablate", "--seconds", "3"], ["push-table", "--supply-v", "0"],
+                                  ["push-table", "--friction-scale", "nan"],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:
