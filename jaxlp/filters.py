@@ -43,14 +43,15 @@ def truncate(x, limit):
     return jnp.clip(x, -limit, limit)
 
 
-def footstep_to_attack_angle(adjustment_m, h1):
-    """Truncate a footstep adjustment at 0.35 ``h1`` and convert it to an attack angle (rad).
+def footstep_to_attack_angle(adjustment_m, h1, limit_m=None):
+    """Truncate a footstep adjustment at ``limit_m`` (default 0.35 ``h1``) and convert it to an attack angle (rad).
 
     Seed 000, Figure 13: "A truncation of 15 cm ~ 0.35 z is also applied ...
     divided by the 3LP pelvis height z to approximate the equivalent attack
     angle adjustment".
     """
-    return truncate(adjustment_m, FOOTSTEP_TRUNCATION_RATIO * h1) / h1
+    limit = FOOTSTEP_TRUNCATION_RATIO * h1 if limit_m is None else limit_m
+    return truncate(adjustment_m, limit) / h1
 
 
 @jax.tree_util.register_dataclass

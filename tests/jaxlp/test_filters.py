@@ -63,6 +63,7 @@ def test_swap_map_of_relative_coordinates():
 def test_footstep_truncation_and_attack_angle(adjust, expected):
     h1 = 0.5242
     assert float(F.footstep_to_attack_angle(adjust, h1)) == pytest.approx(expected / h1, rel=1e-12)
+    assert float(F.footstep_to_attack_angle(adjust, h1, 0.3)) == pytest.approx(max(-0.3, min(0.3, adjust)) / h1)
 
 
 @pytest.mark.parametrize("kwargs,match", [(dict(zeta=0.0), "zeta"), (dict(zeta=1.5), "zeta"),

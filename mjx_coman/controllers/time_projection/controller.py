@@ -188,9 +188,7 @@ def footstep_block(params: Config, tick, error_sag, held_m):
     fresh = params.footstep_table[k] @ error_sag
     held = jnp.where(tick == 0, fresh, held_m)
     raw = params.hold_adjustment * held + (1.0 - params.hold_adjustment) * fresh
-    angle = filters.footstep_to_attack_angle(params.footstep_gain * raw, params.h1_m)
-    limit = params.max_adjustment_m / params.h1_m
-    angle = jnp.clip(angle, -limit, limit)
+    angle = filters.footstep_to_attack_angle(params.footstep_gain * raw, params.h1_m, params.max_adjustment_m)
     return angle * params.h1_m, held
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -93,6 +95,10 @@ def test_footstep_adjustment_follows_table_b_and_truncates(params):
     assert float(big) == pytest.approx(float(params.max_adjustment_m), rel=1e-6)
     neg, _ = ctl.footstep_block(params, jnp.asarray(10), jnp.array([0.0, -1.0, 0.0, -3.0]), 0.0)
     assert float(neg) == pytest.approx(-float(params.max_adjustment_m), rel=1e-6)
+    # the setting is the truncation, above the seed's 0.35 h1 too (it was clipped at 0.35 h1 first)
+    wide = dataclasses.replace(params, max_adjustment_m=jnp.asarray(0.25, params.h1_m.dtype))
+    far, _ = ctl.footstep_block(wide, jnp.asarray(10), jnp.array([0.0, 1.0, 0.0, 3.0]), 0.0)
+    assert float(far) == pytest.approx(0.25, rel=1e-6) and 0.25 > float(params.max_adjustment_m)
 
 
 def test_dlqr_holds_the_phase_start_adjustment_and_open_loop_never_steps(params):
