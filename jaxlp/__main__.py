@@ -9,18 +9,13 @@ A bad argument exits with status 2 and one line on stderr.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 import jax
 
+from jaxlp.cliutil import Parser, refuse
+from jaxlp.files import strict_json
 from jaxlp.presets import robot_names
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit status 2
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
-        sys.exit(2)
 
 
 def _phases(text: str) -> list[float]:
@@ -34,8 +29,8 @@ def _phases(text: str) -> list[float]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m jaxlp", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = Parser(prog="python -m jaxlp", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     info = sub.add_parser("info", help="3LP report of a robot")
     info.add_argument("--robot", choices=robot_names(), default="coman")
     info.add_argument("--height", type=float, default=1.75, help="stature for --robot human, m")
@@ -60,9 +55,8 @@ def main(argv: list[str] | None = None) -> int:
             step_width_m=args.step_width, phases=args.phases, height_m=args.height, mass_kg=args.mass,
         )
     except ValueError as exc:
-        sys.stderr.write(f"python -m jaxlp: error: {exc}\n")
-        return 2
-    print(json.dumps(report, indent=2) if args.json else format_table(report))
+        return refuse("python -m jaxlp", exc)
+    print(strict_json(report, indent=2) if args.json else format_table(report))
     return 0
 
 

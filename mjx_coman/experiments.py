@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxlp.files import strict_json
 from mjx_coman.actuators import JOINT_INDEX, NU, make_actuator_params, series_stiffness_nm_per_rad
 from mjx_coman.env import EnvParams, EnvState, make_command, make_env_params, reset, standing_posture, step
 from mjx_coman.sensors import model_ids
@@ -233,7 +233,7 @@ def main(argv=None) -> int:
         res = knee_step(params=params)
     res = _jsonable(res)
     if args.json:
-        print(json.dumps(res, indent=2))
+        print(strict_json(res, indent=2))
     else:
         for k, v in res.items():
             print(f"{k:45s} {v}")

@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import sys
 import time
-from pathlib import Path
 
+from jaxlp.cliutil import Parser, check_output_file, interrupted, refuse
+from jaxlp.files import strict_json
 from mjx_coman import controllers
 from mjx_coman.studies.metrics import heading_change_rad
 
@@ -46,14 +46,8 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 ALIASES = {"closed-loop": "time-projection"}  # the seed's name of the time-projection controller
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit status 2
-        sys.stderr.write(f"{self.prog}: error: {' '.join(str(message).split())}\n")
-        sys.exit(2)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="python -m mjx_coman.walk", description=__doc__.splitlines()[0])
+    p = Parser(prog="python -m mjx_coman.walk", description=__doc__.splitlines()[0])
     p.add_argument("--controller", default="time-projection", metavar="{" + ",".join(controllers.names()) + "}",
                    help="registered controller (default time-projection; closed-loop is an alias)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -146,12 +140,7 @@ def validate(args: argparse.Namespace) -> None:
         raise ValueError(f"--push-step must be non-negative, got {args.push_step}")
     if not 0 <= args.seed < 2**32:
         raise ValueError(f"--seed must lie in [0, 2**32), got {args.seed}")
-    if args.plot is not None:
-        path = Path(args.plot)
-        if path.suffix.lower() not in PLOT_SUFFIXES:
-            raise ValueError(f"--plot must end in one of {', '.join(PLOT_SUFFIXES)}, got {args.plot!r}")
-        if not path.resolve().parent.is_dir():
-            raise ValueError(f"--plot directory does not exist: {str(path.resolve().parent)!r}")
+    check_output_file("--plot", args.plot, PLOT_SUFFIXES)
     if ctrl.privileged and not args.privileged:
         raise ValueError(f"--controller {name} reads the simulator's ground truth; add --privileged to run it")
     with contextlib.redirect_stdout(sys.stderr):
@@ -324,9 +313,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         validate(args)
     except ValueError as exc:
-        sys.stderr.write(f"python -m mjx_coman.walk: error: {' '.join(str(exc).split())}\n")
-        return 2
-    summary, res = run(args)
+        return refuse("python -m mjx_coman.walk", exc)
+    try:
+        summary, res = run(args)
+    except KeyboardInterrupt:
+        return interrupted("python -m mjx_coman.walk")
     if args.plot:
         push = summary["push"]
         extra = f", push {push['impulse_ns']:g} N s {push['direction']}" if push else ""
@@ -334,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
                              f"{'fell' if summary['fell'] else 'walked'}, {summary['touchdowns']} touchdowns")
         summary["plot"] = str(args.plot)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary, indent=2))
     else:
         for k, v in summary.items():
             print(f"{k:32s} {v}")

@@ -28,15 +28,10 @@ import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
 
+from jaxlp.cliutil import Parser, interrupted
 from sweeps import scenario_args
 from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
 from sweeps.presets import PRESETS
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit status 2
-        sys.stderr.write(f"{self.prog}: error: {' '.join(str(message).split())}\n")
-        sys.exit(2)
 
 
 class Command(NamedTuple):
@@ -147,7 +142,7 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
 
 
 def _run_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--resume", action="store_true", help="keep finished chunks of the same sweep in --out")
+    p.add_argument("--resume", action="store_true", help="keep finished chunks of the same sweep in --out (always done; kept for old scripts)")
     p.add_argument("--force", action="store_true", help="overwrite a different sweep in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--distributed", action="store_true",
@@ -158,8 +153,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="coman-sweep", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = Parser(prog="coman-sweep", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     m = sub.add_parser("map", help="basin map of one controller (no options: the built-in default)")
     _grid_options(m)
     m.add_argument("--controller", help="a controller of the model (see coman-sweep controllers; "
@@ -416,14 +411,21 @@ def _sweep(args, parser) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point; returns the exit status (2 for a bad argument)."""
+    """Entry point; returns the exit status (2 for a bad argument, 130 after Ctrl-C, with one line)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.command in COMMANDS:
-        return COMMANDS[args.command].run(args, parser)
-    if args.command == "controllers":
-        return _list_controllers(args, parser)
-    return _sweep(args, parser)
+    from sweeps.runner import SweepInterrupted
+
+    try:
+        if args.command in COMMANDS:
+            return COMMANDS[args.command].run(args, parser)
+        if args.command == "controllers":
+            return _list_controllers(args, parser)
+        return _sweep(args, parser)
+    except SweepInterrupted as e:
+        return interrupted(parser.prog, str(e))
+    except KeyboardInterrupt:
+        return interrupted(parser.prog)
 
 
 if __name__ == "__main__":

@@ -227,7 +227,7 @@ def run(args, parser) -> int:
 
     from jaxlp.presets import get_params
     from sweeps import region as R
-    from jaxlp.files import save_bytes_atomic, save_text_atomic
+    from jaxlp.files import save_bytes_atomic, save_text_atomic, strict_json
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -280,7 +280,7 @@ def run(args, parser) -> int:
         constants=None if consts is None else {n: _boundary_json(f["newton"]) for n, f in consts.items()},
         command="coman-sweep " + " ".join(sys.argv[1:]), device_count=jax.device_count(),
     )
-    save_text_atomic(out / "region.json", json.dumps(summary, indent=1))
+    save_text_atomic(out / "region.json", strict_json(summary))
     print(f"{args.controller}: Newton {nb.rollouts} rollouts vs bisection {bb.rollouts} "
           f"({summary['rollout_ratio']:.2f}x fewer; full map {summary['full_map_rollouts']}); same boundary "
           f"within the grid at {int(same.sum())}/{same.size} timings")

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxlp.cliutil import check_output_dir
+
 PLANTS = ("3lp", "mjx")
 OPTIMIZERS = ("adam", "adamw", "sgd")
 
@@ -296,24 +298,11 @@ def config_from_args(args) -> TuneConfig:
                       tune_weights=args.tune_weights, x64=args.x64).validate()
 
 
-def _check_out(out: Path) -> None:
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a folder")
-    parent = out if out.exists() else out.parent
-    while not parent.exists():
-        parent = parent.parent
-    import os
-
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"--out {out}: cannot write into {parent}")
-
-
 def run(args, parser) -> int:
     """Run ``coman-sweep tune``; bad arguments exit 2 with one line (``parser.error``)."""
     try:
         config = config_from_args(args)
-        _check_out(args.out)
+        check_output_dir("--out", args.out)
         if config.plant == "3lp":
             from jaxlp.presets import get_params
 

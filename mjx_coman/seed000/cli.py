@@ -8,17 +8,12 @@ import math
 import sys
 
 
+from jaxlp.cliutil import Parser, interrupted, refuse
 from jaxlp.files import strict_json
 from mjx_coman import controllers
 from mjx_coman.seed000.common import DIRECTIONS, FAMILY, PUSH_TABLE_IMPULSES_NS, SUPPLY_V, VARIANTS, config
 from mjx_coman.seed000.push_table import impulse_grid, push_table
 from mjx_coman.seed000.walks import SWITCHES, ablate, identify, ten_second_walks
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
-        sys.exit(2)
 
 
 def _floats(text: str) -> list[float]:
@@ -69,8 +64,8 @@ def _run(args):
 
 
 def main(argv=None) -> int:
-    ap = _Parser(prog="python -m mjx_coman.seed000", description="The walking experiments of seed 000 on the simulated COMAN, each printing JSON.")
-    sub = ap.add_subparsers(dest="experiment", required=True, parser_class=_Parser)
+    ap = Parser(prog="python -m mjx_coman.seed000", description="The walking experiments of seed 000 on the simulated COMAN, each printing JSON.")
+    sub = ap.add_subparsers(dest="experiment", required=True, parser_class=Parser)
     pt = sub.add_parser("push-table")
     pt.add_argument("--impulses", type=_floats, default=list(PUSH_TABLE_IMPULSES_NS), help="N s")
     pt.add_argument("--phases", type=int, default=8)
@@ -109,8 +104,9 @@ def main(argv=None) -> int:
         with contextlib.redirect_stdout(sys.stderr):
             res = _run(args)
     except ValueError as e:
-        sys.stderr.write(f"python -m mjx_coman.seed000: error: {' '.join(str(e).split())}\n")
-        return 2
+        return refuse("python -m mjx_coman.seed000", e)
+    except KeyboardInterrupt:
+        return interrupted("python -m mjx_coman.seed000")
     if res is None:
         return 2
     print(strict_json({k: v for k, v in res.items() if k != "raw"}, indent=2 if args.json else None))

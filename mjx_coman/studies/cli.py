@@ -9,26 +9,20 @@ Every argument is checked before anything is built: a bad one exits with status 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
+from jaxlp.cliutil import Parser, check_output_file, interrupted, refuse
 from jaxlp.files import save_text_atomic, strict_json
 
 PROG = "python -m mjx_coman.studies"
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit status 2
-        sys.stderr.write(f"{self.prog}: error: {' '.join(str(message).split())}\n")
-        sys.exit(2)
-
-
 def build_parser() -> argparse.ArgumentParser:
     from mjx_coman.studies import SIZES, names
 
-    p = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    p = Parser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("experiment", metavar="{" + ",".join(names()) + "}")
     p.add_argument("--controller", default="footstep-mpc", help="registered walking controller")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -43,18 +37,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _writable(flag: str, path: str | None, suffixes=None) -> None:
-    if path is None:
-        return
-    p = Path(path)
-    if suffixes and p.suffix.lower() not in suffixes:
-        raise ValueError(f"{flag} must end in one of {', '.join(suffixes)}, got {path!r}")
-    if p.is_dir():
-        raise ValueError(f"{flag} names a directory: {path!r}")
-    if not p.resolve().parent.is_dir() or not os.access(p.resolve().parent, os.W_OK):
-        raise ValueError(f"{flag} directory does not exist or is not writable: {str(p.resolve().parent)!r}")
-
-
 def validate(args) -> None:
     """Check every argument (the plan is built, nothing compiled).
 
@@ -65,8 +47,8 @@ def validate(args) -> None:
 
     if not 1 <= args.batch <= 1024:
         raise ValueError(f"--batch must lie in [1, 1024], got {args.batch}")
-    _writable("--plot", args.plot, PLOT_SUFFIXES)
-    _writable("--out", args.out)
+    check_output_file("--plot", args.plot, PLOT_SUFFIXES)
+    check_output_file("--out", args.out)
     from mjx_coman import controllers
 
     args.overrides = controllers.parse_overrides(controllers.get(args.controller), args.set)
@@ -78,8 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         validate(args)
     except ValueError as exc:
-        sys.stderr.write(f"{PROG}: error: {' '.join(str(exc).split())}\n")
-        return 2
+        return refuse(PROG, exc)
     from mjx_coman import studies
 
     bar = None
@@ -96,8 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         result, rows = studies.run(args.experiment, args.controller, args.size, args.seed, args.overrides,
                                    batch=args.batch, progress=None if bar is None else progress)
     except KeyboardInterrupt:
-        sys.stderr.write(f"{PROG}: interrupted\n")
-        return 130
+        return interrupted(PROG)
     finally:
         if bar is not None:
             bar.close()

@@ -102,7 +102,8 @@ def test_bad_config_raises(field, value):
                                        (["--plant", "mjx", "--controller", "nope"], "time-projection"),
                                        (["--plant", "mjx", "--set", "bogus=1"], "bogus"),
                                        (["--set", "zeta=0.2"], "--set"),
-                                       (["--plant", "mjx", "--tune", "step_time_s"], "step_time_s")])
+                                       (["--plant", "mjx", "--tune", "step_time_s"], "step_time_s"),
+                                       (["--out", "/proc/x"], "/proc")])
 def test_bad_arguments_exit_2_with_one_line(args, word):
     p = subprocess.run([sys.executable, "-m", "sweeps", "tune", *args], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
