@@ -8,9 +8,14 @@ jitted ``vmap`` of the model's rollout. The few scalars a rollout returns are
 gathered to the host (across processes with ``process_allgather``).
 
 Each finished chunk is written atomically (temporary file in the same folder,
-then ``os.replace``) under ``OUT/chunks/``; ``resume=True`` skips the chunks
-already there. ``OUT/config.json`` holds the configuration and its hash: a
-different sweep is refused unless ``force=True``.
+then ``os.replace``) under ``OUT/chunks/``. ``OUT/config.json`` holds the
+configuration and its hash. A rerun of the same sweep keeps every readable
+finished chunk (results are deterministic, so nothing is lost or mixed); an
+unreadable one (a truncated or corrupt file) is recomputed, with one line
+on stderr. A folder holding a different sweep's finished work is refused
+unless ``force=True``; one holding only the ``config.json`` of a run that
+died before its first chunk is taken over. Ctrl-C raises
+:class:`SweepInterrupted` with the chunks finished so far (kept on disk).
 
 Several processes (``jax.distributed``, one per host): every process runs this
 same function with the same configuration. ``jax.devices()`` is then the
@@ -31,6 +36,7 @@ import os
 import shutil
 import sys
 import time
+import zipfile
 from pathlib import Path
 from typing import Callable, NamedTuple
 
@@ -50,6 +56,15 @@ _FN_CACHE: dict = {}
 
 class SweepConflict(RuntimeError):
     """The output folder holds a different sweep (the command line exits 2)."""
+
+
+class SweepInterrupted(Exception):
+    """Ctrl-C during a sweep; ``done`` of ``total`` chunks are finished in ``out_dir`` and kept."""
+
+    def __init__(self, out_dir: Path, done: int, total: int):
+        super().__init__(f"after {done} of {total} chunks in {out_dir}; "
+                         "rerun the same command to finish (finished chunks are kept)")
+        self.out_dir, self.done, self.total = out_dir, done, total
 
 
 class SweepRun(NamedTuple):
@@ -74,31 +89,37 @@ def stored_hash(out_dir: Path) -> str | None:
         return None
 
 
-def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool, force: bool) -> Path:
+def _finished_work(out_dir: Path) -> bool:
+    chunk_dir = out_dir / CHUNK_DIR
+    return any(chunk_dir.glob("chunk_*.npz")) or any((out_dir / n).exists() for n in RESULT_FILES)
+
+
+def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool = True, force: bool) -> Path:
     """Create or check ``out_dir`` for ``config``; return its chunk folder.
 
-    A folder holding the same sweep is restarted (``resume=False``) or kept
-    (``resume=True``); a folder holding a different sweep is refused unless
-    ``force``, which wipes its chunks and results.
+    The same sweep keeps its finished chunks (``resume`` is accepted for the
+    command line's ``--resume`` and changes nothing: results are
+    deterministic); ``force`` wipes them. A different sweep's finished work (or
+    results with no ``config.json``) is refused unless ``force``; a
+    ``config.json`` with no finished work (a run that died before its first
+    chunk) is replaced.
 
     Raises:
-        SweepConflict: ``out_dir`` holds a different sweep and ``force`` is off.
+        SweepConflict: ``out_dir`` holds a different sweep's finished work and ``force`` is off.
     """
+    del resume
     out_dir = Path(out_dir)
     chunk_dir = out_dir / CHUNK_DIR
-    fresh = not resume
+    fresh = force
     if (out_dir / "config.json").exists():
         old = stored_hash(out_dir)
-        if old != config.hash():
-            if not force:
-                raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old} != {config.hash()}); "
-                                    "use --force to overwrite it or another --out")
-            fresh = True
-    elif chunk_dir.exists() or any((out_dir / n).exists() for n in RESULT_FILES):
-        if not force:
-            raise SweepConflict(f"{out_dir} holds results of an unknown sweep (no config.json); "
-                                "use --force to overwrite them or another --out")
-        fresh = True
+        if old != config.hash() and _finished_work(out_dir) and not force:
+            raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old} != {config.hash()}); "
+                                "use --force to overwrite it or another --out")
+        fresh = fresh or old != config.hash()
+    elif _finished_work(out_dir) and not force:
+        raise SweepConflict(f"{out_dir} holds results of an unknown sweep (no config.json); "
+                            "use --force to overwrite them or another --out")
     out_dir.mkdir(parents=True, exist_ok=True)
     if fresh:
         shutil.rmtree(chunk_dir, ignore_errors=True)
@@ -107,6 +128,29 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool, force: 
     chunk_dir.mkdir(exist_ok=True)
     save_text_atomic(out_dir / "config.json", strict_json({"hash": config.hash(), "config": config.to_dict()}))
     return chunk_dir
+
+
+def chunk_readable(path: Path) -> bool:
+    """Whether a chunk file is there and whole: every array reads (the zip checks its CRCs) and ``lo < hi``."""
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+        return int(arrays["lo"]) < int(arrays["hi"])
+    except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile):
+        return False
+
+
+def _finished_chunks(chunk_dir: Path, n_chunks: int) -> list[bool]:
+    """Which chunks are finished; an unreadable chunk file is removed (to be recomputed), with one line."""
+    done = []
+    for i in range(n_chunks):
+        path = chunk_path(chunk_dir, i)
+        ok = chunk_readable(path)
+        if not ok and path.exists():
+            print(f"{path}: unreadable (truncated or corrupt): recomputing it", file=sys.stderr)
+            path.unlink()
+        done.append(ok)
+    return done
 
 
 def chunk_path(chunk_dir: Path, i: int) -> Path:
@@ -221,7 +265,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
     if writer:
         try:
             chunk_dir = prepare_out_dir(out_dir, config, resume=resume, force=force)
-            status[1:] = [chunk_path(chunk_dir, i).exists() for i in range(n_chunks)]
+            status[1:] = _finished_chunks(chunk_dir, n_chunks)
         except SweepConflict as e:
             conflict, status[0] = e, 1
     status = _broadcast_from_0(status)
@@ -240,27 +284,31 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
         keys = rollout_keys(config.seed, inputs.index)
         fn, sharding = _chunk_fn(config.compiled_part(), model.rollout, devices)
         bar = _progress(n, n - sum(rows(i) for i in todo), progress and writer, desc)
-        for k, i in enumerate(todo):
-            lo, hi = i * chunk, i * chunk + rows(i)
-            t0 = time.perf_counter()
-            host = _chunk_inputs(inputs, keys, lo, hi, padded, float_dtype)
-            aux = None if model.prepare is None else model.prepare(config.compiled_part(), host)
-            batch, aux = jax.tree_util.tree_map(lambda x: _global(np.asarray(x), sharding), (host, aux))
-            out = _to_host(fn(batch, aux))
-            dt = time.perf_counter() - t0
-            if k == 0:
-                first_s = dt
-            else:
-                run_s += dt
-            flat = {name: v for name, v in out._asdict().items() if name != "extra"}
-            flat.update(out.extra)
-            arrays = _clean({name: np.asarray(v)[: hi - lo] for name, v in flat.items()})
-            computed[i] = arrays
-            if writer:
-                save_npz_atomic(chunk_path(chunk_dir, i), dict(arrays, lo=np.asarray(lo), hi=np.asarray(hi)))
-            bar.update(hi - lo)
-            if delay_s:
-                time.sleep(delay_s)
+        try:
+            for k, i in enumerate(todo):
+                lo, hi = i * chunk, i * chunk + rows(i)
+                t0 = time.perf_counter()
+                host = _chunk_inputs(inputs, keys, lo, hi, padded, float_dtype)
+                aux = None if model.prepare is None else model.prepare(config.compiled_part(), host)
+                batch, aux = jax.tree_util.tree_map(lambda x: _global(np.asarray(x), sharding), (host, aux))
+                out = _to_host(fn(batch, aux))
+                dt = time.perf_counter() - t0
+                if k == 0:
+                    first_s = dt
+                else:
+                    run_s += dt
+                flat = {name: v for name, v in out._asdict().items() if name != "extra"}
+                flat.update(out.extra)
+                arrays = _clean({name: np.asarray(v)[: hi - lo] for name, v in flat.items()})
+                computed[i] = arrays
+                if writer:
+                    save_npz_atomic(chunk_path(chunk_dir, i), dict(arrays, lo=np.asarray(lo), hi=np.asarray(hi)))
+                bar.update(hi - lo)
+                if delay_s:
+                    time.sleep(delay_s)
+        except KeyboardInterrupt:
+            bar.close()
+            raise SweepInterrupted(Path(out_dir), n_chunks - len(todo) + len(computed), n_chunks) from None
         bar.close()
     _barrier("sweeps: all chunks written")
     results = _assemble(inputs, [computed.get(i) or chunk_path(chunk_dir, i) for i in range(n_chunks)], n, config) \

@@ -60,18 +60,42 @@ def test_same_config_and_seed_same_results_another_seed_differs(tmp_path, noisy_
 def test_out_dir_identity(tmp_path):
     a = SweepConfig(phases=(0.0,), impulses_ns=(1.0,))
     b = SweepConfig(phases=(0.0,), impulses_ns=(1.0,), seed=1)
-    chunks = prepare_out_dir(tmp_path, a, resume=False, force=False)
+    chunks = prepare_out_dir(tmp_path, a, force=False)
     chunk_path(chunks, 0).write_bytes(b"x")
+    (tmp_path / "results.csv").write_text("finished")
     assert json.loads((tmp_path / "config.json").read_text())["hash"] == a.hash() != b.hash()
-    prepare_out_dir(tmp_path, a, resume=True, force=False)
-    assert chunk_path(chunks, 0).exists()  # the same sweep, resumed: kept
+    for resume in (True, False):  # the same sweep again, resumed or not: nothing finished is deleted
+        prepare_out_dir(tmp_path, a, resume=resume, force=False)
+        assert chunk_path(chunks, 0).exists() and (tmp_path / "results.csv").read_text() == "finished"
     with pytest.raises(SweepConflict, match="different sweep"):
-        prepare_out_dir(tmp_path, b, resume=True, force=False)
-    assert chunk_path(chunks, 0).exists()
-    prepare_out_dir(tmp_path, b, resume=True, force=True)
+        prepare_out_dir(tmp_path, b, force=False)
+    assert chunk_path(chunks, 0).exists() and (tmp_path / "results.csv").exists()
+    prepare_out_dir(tmp_path, b, force=True)
     assert not chunk_path(chunks, 0).exists()  # forced: the other sweep's chunks are gone
-    prepare_out_dir(tmp_path, b, resume=False, force=False)  # the same sweep again, not resumed: restart
+    assert not (tmp_path / "results.csv").exists()
+    prepare_out_dir(tmp_path, a, force=False)  # b died before its first chunk: its config.json blocks nothing
+    assert json.loads((tmp_path / "config.json").read_text())["hash"] == a.hash()
     (tmp_path / "config.json").unlink()
     (tmp_path / "results.npz").write_bytes(b"x")
     with pytest.raises(SweepConflict, match="unknown sweep"):
-        prepare_out_dir(tmp_path, a, resume=False, force=False)
+        prepare_out_dir(tmp_path, a, force=False)
+
+
+def test_unreadable_chunks_are_found_and_removed(tmp_path, capsys):
+    from jaxlp.files import save_npz_atomic
+    from sweeps.runner import _finished_chunks, chunk_readable
+
+    good = dict(fell=np.zeros(4, bool), lo=np.asarray(0), hi=np.asarray(4))
+    for i in range(4):
+        save_npz_atomic(chunk_path(tmp_path, i), good)
+    whole = chunk_path(tmp_path, 1).read_bytes()
+    chunk_path(tmp_path, 1).write_bytes(whole[: len(whole) // 2])  # truncated
+    chunk_path(tmp_path, 2).write_bytes(b"")  # empty
+    flipped = bytearray(whole)
+    flipped[60] ^= 0xFF  # a flipped byte inside the first array's data: the zip CRC catches it
+    chunk_path(tmp_path, 3).write_bytes(bytes(flipped))
+    assert chunk_readable(chunk_path(tmp_path, 0)) and not chunk_readable(tmp_path / "missing.npz")
+    assert _finished_chunks(tmp_path, 5) == [True, False, False, False, False]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chunk_00000.npz"]
+    err = capsys.readouterr().err
+    assert err.count("\n") == err.count("recomputing it\n") == 3

@@ -175,6 +175,42 @@ def test_resume_after_kill_matches_uninterrupted(reference, tmp_path):
     assert again.returncode == 0 and json.loads((out / "summary.json").read_text())["chunks_run"] == 0
 
 
+def test_ctrl_c_one_line_then_a_plain_rerun_recomputes_a_corrupt_chunk_and_keeps_the_rest(reference, tmp_path):
+    import signal
+
+    out = tmp_path / "interrupted"
+    cmd = [sys.executable, "-m", "sweeps", "map", *SMALL, "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(COMAN_SWEEP_CHUNK_DELAY_S="3"),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 180
+        while len(list((out / "chunks").glob("chunk_*.npz"))) < 2 and time.time() < deadline:
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130
+    assert err.count("\n") == 1 and err.startswith("coman-sweep: interrupted after ") and "of 6 chunks" in err
+    done = sorted((out / "chunks").glob("chunk_*.npz"))
+    assert 2 <= len(done) < 6
+    whole = done[0].read_bytes()
+    done[0].write_bytes(whole[: len(whole) // 3])  # a chunk file cut short (a full disk, a copy gone wrong)
+    stamp = done[1].stat().st_mtime_ns
+    r = _sweep(["map", *SMALL, "--out", str(out)])  # no --resume: the finished chunks are kept all the same
+    assert r.returncode == 0, r.stderr
+    assert f"{done[0]}: unreadable" in r.stderr and done[1].stat().st_mtime_ns == stamp
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["chunks_resumed"] == len(done) - 1 and summary["chunks_run"] == 6 - len(done) + 1
+    a, b = _results(out), _results(reference)
+    for k in b:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    again = _sweep(["map", *SMALL, "--out", str(out)], timeout=60)  # a finished sweep run again: nothing lost
+    assert again.returncode == 0 and json.loads((out / "summary.json").read_text())["chunks_run"] == 0
+    for k, v in _results(out).items():
+        np.testing.assert_array_equal(v, b[k], err_msg=k)
+
+
 def test_four_devices_match_one(reference, tmp_path):
     # chunks of 6 padded to 8 rows: 2 rollouts per device, other chunk boundaries than the reference
     r = _sweep(["map", *GRID, "--chunk", "6", "--out", str(tmp_path)], XLA_FLAGS="--xla_force_host_platform_device_count=4")
