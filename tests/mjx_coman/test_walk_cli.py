@@ -80,7 +80,7 @@ def no_build(monkeypatch):
         (["--seed", str(2**64)], "--seed"),
         (["--plot", "out.txt"], "--plot"),
         (["--plot", "/no/such/dir/out.png"], "--plot"),
-        (["--plot", "/proc/out.png"], "/proc/out.png"),  
+        (["--plot", "/proc/out.png"], "/proc/out.png"),  # mode bits let root write there: tried, not read
         (["--bogus"], "--bogus"),
     ],
 )
