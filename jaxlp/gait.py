@@ -25,6 +25,8 @@ from jaxlp.dynamics import N_Q, propagate, transition
 from jaxlp.params import ThreeLPParams, _check_positive, _is_concrete
 
 MAX_STEP_LENGTH_RATIO = 0.7  # step length / h1 beyond which the linear model is not trusted
+MAX_STEP_WIDTH_RATIO = 1.0  # step width / h1: wider than the hip height is no walking gait
+MAX_STEP_TIME_S = 2.0  # a walking step (COMAN 0.4 s, people 0.5-0.7 s); exp(omega T) overflows far beyond
 
 
 class Gait(NamedTuple):
@@ -45,12 +47,25 @@ class Gait(NamedTuple):
     step_width_m: jax.Array
 
 
-def _validate(params: ThreeLPParams, step_time_s, speed_mps, step_width_m) -> None:
+def check_feasible(params: ThreeLPParams, step_time_s, speed_mps, step_width_m=None) -> None:
+    """Refuse a gait the 3LP cannot design: step time in (0, ``MAX_STEP_TIME_S``], step length at most
+    ``MAX_STEP_LENGTH_RATIO`` h1, step width in [0, ``MAX_STEP_WIDTH_RATIO`` h1] (checks on concrete values only).
+
+    Raises:
+        ValueError: naming the value and the reason.
+    """
     _check_positive("step_time_s", step_time_s)
+    if _is_concrete(step_time_s) and np.any(np.asarray(step_time_s, float) > MAX_STEP_TIME_S):
+        raise ValueError(f"step_time_s={np.asarray(step_time_s).tolist()} is longer than {MAX_STEP_TIME_S} s: "
+                         "no walking gait")
     if step_width_m is not None and _is_concrete(step_width_m):
         w = np.asarray(step_width_m, float)
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ValueError(f"step_width_m must be finite and non-negative, got {w.tolist()}")
+        if _is_concrete(params.h1) and np.any(w > MAX_STEP_WIDTH_RATIO * np.asarray(params.h1, float)):
+            raise ValueError(f"step_width_m={w.tolist()} is wider than {MAX_STEP_WIDTH_RATIO:g} h1 = "
+                             f"{float(np.max(MAX_STEP_WIDTH_RATIO * np.asarray(params.h1, float))):.5g} m: "
+                             "infeasible for the 3LP model")
     if _is_concrete(speed_mps) and _is_concrete(step_time_s) and _is_concrete(params.h1):
         v = np.asarray(speed_mps, float)
         if not np.all(np.isfinite(v)):
@@ -125,7 +140,7 @@ def periodic_gait(
     Raises:
         ValueError: a non-positive step time, or a step longer than 0.7 ``h1``.
     """
-    _validate(params, step_time_s, speed_mps, step_width_m)
+    check_feasible(params, step_time_s, speed_mps, step_width_m)
     T = jnp.asarray(step_time_s, dtype=jnp.result_type(float))
     v = jnp.asarray(speed_mps, dtype=T.dtype)
 

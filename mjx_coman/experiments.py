@@ -19,14 +19,15 @@ Each function jits one scan over the ticks and returns plain floats and
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
+import math
 import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxlp.cliutil import Parser, interrupted, refuse
 from jaxlp.files import strict_json
 from mjx_coman.actuators import JOINT_INDEX, NU, make_actuator_params, series_stiffness_nm_per_rad
 from mjx_coman.env import EnvParams, EnvState, make_command, make_env_params, reset, standing_posture, step
@@ -218,19 +219,30 @@ def _jsonable(d: dict) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    prog = "python -m mjx_coman.experiments"
+    ap = Parser(prog=prog, description=__doc__.split("\n")[0])
     ap.add_argument("experiment", choices=["stand", "ankle", "knee"])
     ap.add_argument("--json", action="store_true", help="print the numbers as JSON")
     ap.add_argument("--duration", type=float, default=None, help="stand: seconds (default 10)")
     ap.add_argument("--spring", type=float, default=390.0, help="series spring stiffness, N m/rad")
     args = ap.parse_args(argv)
-    params = make_env_params(actuator=make_actuator_params(spring_stiffness_nm_per_rad=args.spring))
-    if args.experiment == "stand":
-        res = stand(args.duration or 10.0, params)
-    elif args.experiment == "ankle":
-        res = ankle_stiffness(params=params)
-    else:
-        res = knee_step(params=params)
+    try:
+        if args.duration is not None and not (math.isfinite(args.duration) and 0 < args.duration <= 600):
+            raise ValueError(f"--duration must lie in (0, 600] s, got {args.duration}")
+        if args.duration is not None and args.experiment != "stand":
+            raise ValueError(f"--duration applies to stand only, got it with {args.experiment}")
+        params = make_env_params(actuator=make_actuator_params(spring_stiffness_nm_per_rad=args.spring))
+    except ValueError as e:
+        return refuse(prog, e)
+    try:
+        if args.experiment == "stand":
+            res = stand(10.0 if args.duration is None else args.duration, params)
+        elif args.experiment == "ankle":
+            res = ankle_stiffness(params=params)
+        else:
+            res = knee_step(params=params)
+    except KeyboardInterrupt:
+        return interrupted(prog)
     res = _jsonable(res)
     if args.json:
         print(strict_json(res, indent=2))

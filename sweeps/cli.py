@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
 
-from jaxlp.cliutil import Parser, interrupted
+from jaxlp.cliutil import Parser, check_output_dir, interrupted
 from sweeps import scenario_args
 from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
 from sweeps.presets import PRESETS
@@ -365,7 +365,8 @@ def _sweep(args, parser) -> int:
     _start_distributed(args)
     try:
         plans = plan_runs(args)
-    except GridError as e:
+        check_output_dir("--out", args.out)
+    except (GridError, ValueError) as e:
         parser.error(str(e))
     import jax
 

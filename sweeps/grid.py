@@ -29,6 +29,7 @@ RESULTS_VERSION = 2  # in every hash: 2 judges MJX walks on ground truth (steps 
 # scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config
 SCENARIO_AXES = ("delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
 MJX_CONTROL_PERIOD_S = 0.002
+MAX_N_STEPS = 200  # 80 s of 0.4 s steps; a billion steps was an out-of-memory traceback
 
 
 class GridError(ValueError):
@@ -198,6 +199,12 @@ class SweepConfig:
                                     f"with --model {self.model}")
         if self.model != "3lp" and self.recover_tol != SweepConfig.recover_tol:
             raise GridError(f"recover_tol applies to --model 3lp only (mjx walks are judged on ground truth)")
+        if self.model != "3lp" and self.robot != SweepConfig.robot:
+            raise GridError(f"robot applies to --model 3lp only (the mjx model is COMAN), got {self.robot!r} "
+                            f"with --model {self.model}")
+        if self.n_steps > MAX_N_STEPS:
+            raise GridError(f"n_steps must be at most {MAX_N_STEPS} (each rollout records every step), "
+                            f"got {self.n_steps}")
         if self.n_steps < 1 or self.push_step < 0 or self.push_step >= self.n_steps:
             raise GridError(f"push_step must lie in [0, n_steps={self.n_steps}), got {self.push_step}")
         if not 0 <= self.seed < 2**32:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxlp.cliutil import check_output_dir
 from sweeps.grid import DIRECTIONS_RAD, GridError, parse_impulses, parse_phases
 
 HELP = "largest recoverable impulse per push timing: safeguarded Newton on the margin vs bisection"
@@ -79,6 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _check(args) -> dict | None:
     """Validate the arguments; return the tuned record (or ``None``). Raises ``ValueError``."""
+    check_output_dir("--out", args.out)
     imp = np.asarray(args.impulses, float)
     if imp.size < 3 or np.any(np.diff(imp) <= 0):
         raise ValueError(f"--impulses must be at least 3 increasing values, got {args.impulses}")

@@ -39,6 +39,8 @@ def _names(allowed):
 def _run(args):
     ov = controllers.parse_overrides(controllers.get(FAMILY), args.set)
     config(FAMILY, **ov)  # a bad value is a ValueError naming it, before anything walks
+    if not 0 <= args.seed < 2**32:
+        raise ValueError(f"--seed must lie in [0, 2**32), got {args.seed}")
     if args.experiment == "push-table":
         if args.phases < 1 or args.push_step < 0 or args.steps_after < 1 or min(args.impulses) <= 0:
             sys.stderr.write("python -m mjx_coman.seed000: error: --phases, --steps-after >= 1, "

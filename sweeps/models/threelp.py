@@ -70,10 +70,17 @@ def check(config: SweepConfig, build: bool = True) -> None:
         raise GridError(f"setting zeta={s['zeta']} must lie in (0, 1]")
     if not (math.isfinite(float(s["window_samples"])) and 1 <= float(s["window_samples"]) <= 200):
         raise GridError(f"setting window_samples={s['window_samples']} must lie in [1, 200]")
-    from jaxlp.presets import robot_names
+    from jaxlp.presets import get_params, robot_names
 
     if config.robot not in robot_names():
         raise GridError(f"unknown robot {config.robot!r}; choose one of {', '.join(robot_names())}")
+    if build:
+        from jaxlp.gait import check_feasible
+
+        try:
+            check_feasible(get_params(config.robot), config.step_time_s, config.speed_mps)
+        except ValueError as e:
+            raise GridError(str(e)) from None
 
 
 def _sensing_on(config: SweepConfig) -> bool:
