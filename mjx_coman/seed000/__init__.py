@@ -10,7 +10,8 @@
   :mod:`mjx_coman.ground_truth`) and steps to recover (seed "Intermittent Push
   Recovery", Figures 16-17). The claim checked: at every phase the closed
   loop recovers an impulse at least twice the largest that the open loop
-  recovers at every phase.
+  recovers at every phase. ``--supply-v`` and ``--friction-scale`` switch
+  two limits of the plant (:func:`~mjx_coman.seed000.common.plant`).
 * ``drag``: a constant forward or backward force on the torso for the whole
   walk on the open-loop in-place gait (seed Figure 18): drift speed, no fall.
   The default forces are +-1 N (and 0 N for reference): on the simulated
@@ -21,8 +22,8 @@
 * ``speeds``: closed-loop walking at 0.1 and 0.2 m/s (seed Figure 19): mean speed.
 * ``ten``: ``scatter``, ``drag`` and ``speeds`` in one batch (one compilation).
 * ``ablate``: one block switched at a time (dead-zones, attack-angle share,
-  filter): in-place drift over 20 s and steps to recover from forward and
-  backward pushes, ground truth.
+  filter, stance ankle, footstep gain): in-place drift over 20 s and steps
+  to recover from forward and backward pushes, ground truth.
 * ``identify``: dead-zone thresholds and knee deflections from the open-loop
   in-place walk (seed Figures 7 and 9;
   :mod:`mjx_coman.controllers.time_projection.identification`).

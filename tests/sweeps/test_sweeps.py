@@ -180,7 +180,7 @@ def test_ctrl_c_one_line_then_a_plain_rerun_recomputes_a_corrupt_chunk_and_keeps
 
     out = tmp_path / "interrupted"
     cmd = [sys.executable, "-m", "sweeps", "map", *SMALL, "--out", str(out)]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(COMAN_SWEEP_CHUNK_DELAY_S="3"),
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(COMAN_SWEEP_CHUNK_DELAY_S="1"),
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 180
