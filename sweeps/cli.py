@@ -23,7 +23,6 @@ Other modules add subcommands with :func:`register_command`.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -318,6 +317,8 @@ def _list_controllers(args, parser) -> int:
 
 
 def _describe(summary: dict, out: Path) -> str:
+    from sweeps.report import percent
+
     per = summary["per_phase"]
     best = ", ".join(f"{r['phase']:.2f}: " + ("-" if r["max_recovered_impulse_ns"] is None
                                               else f"{r['max_recovered_impulse_ns']:g}") for r in per)
@@ -332,7 +333,8 @@ def _describe(summary: dict, out: Path) -> str:
                    f"strongest phase {hi_ph:.2f} recovers {hi:g} N s ({hi / dur:g} N)")
     return (
         f"{summary['model']} / {summary['controller']}: {summary['direction']} {summary['push_duration_s']:g} s pushes "
-        f"during step {summary['push_step']}: {summary['recovery_rate']:.1%} of {summary['rollouts']} rollouts recovered "
+        f"during step {summary['push_step']}: {percent(summary['recovery_rate'])} of the finite of {summary['rollouts']} "
+        f"rollouts recovered "
         f"({summary['fell']} fell, {summary['nan']} NaN)\n"
         f"largest recovered impulse (N s) per phase of the step"
         + (" (recovered in every scenario; each scenario below)" if summary.get("per_scenario") else "")

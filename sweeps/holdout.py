@@ -85,8 +85,9 @@ def summary(run) -> dict:
     settled = steps[steps >= 0]
     late = res.get("late_error")
     return dict(
-        direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=float(np.mean(ok)),
-        pushed_recovery_rate=float(np.mean(ok[pushed])) if pushed.any() else None,
+        direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=report.recovery_rate(res),
+        pushed_recovery_rate=report.recovery_rate({k: res[k][pushed] for k in ("fell", "nan")}),
+        nan=int(np.sum(res["nan"])),
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
@@ -102,12 +103,14 @@ def compare(runs: dict) -> dict:
     out = {}
     for name, lst in runs.items():
         ok = np.concatenate([report.recovered(r.results) for r in lst])
+        nan = np.concatenate([np.asarray(r.results["nan"], bool) for r in lst])
         steps = np.concatenate([r.results["steps_to_recover"][report.recovered(r.results)
                                                               & (r.results["impulse_ns"] > 0)] for r in lst])
         settled = steps[steps >= 0]
         late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst
                                if "late_error" in r.results] or [np.zeros(0)])
-        out[name] = dict(recovery_rate=float(np.mean(ok)), rollouts=int(ok.size),
+        out[name] = dict(recovery_rate=report.recovery_rate(dict(fell=~ok & ~nan, nan=nan)), rollouts=int(ok.size),
+                         nan=int(nan.sum()),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
                          settled=int(settled.size), model=lst[0].config.model,
                          recover_tol=lst[0].config.recover_tol if lst[0].config.model == "3lp" else None,
@@ -228,7 +231,7 @@ def format_table(table: dict) -> str:
         for d in t["per_direction"]:
             best = [r["max_recovered_impulse_ns"] for r in d["per_phase"]]
             weakest.append(f"{d['direction']} {min(v or 0.0 for v in best):g}")
-        lines.append(f"  held-out {t['model']} grid, {name} constants: {t['recovery_rate']:.1%} of {t['rollouts']} "
+        lines.append(f"  held-out {t['model']} grid, {name} constants: {report.percent(t['recovery_rate'])} of {t['rollouts']} "
                      f"recovered; {t['settled']} pushed walks settled, after {steps} steps on average; "
                      f"largest impulse recovered at the weakest phase (N s): {', '.join(weakest)}")
     return "\n".join(lines)

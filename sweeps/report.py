@@ -1,7 +1,10 @@
 """Sweep outputs: results.npz, results.csv, basin.png and summary.json; the controller comparison.
 
-Statistics never see a numerically bad rollout as a number: such rows carry
-``reason == "nan"``, count as not recovered and are left out of maxima.
+One meaning per word, in rows and summaries alike: ``nan`` a rollout that
+went non-finite, ``fell`` a finite rollout that fell, recovered neither
+(``reason`` is ``"nan"``, ``"fell"`` or ``""``). NaN rollouts are counted
+(``nan``) and left out of every statistic: rates are over the finite
+rollouts, maxima and medians over the recovered ones.
 
 A sweep with scenario axes (``SweepConfig.scenario``) records each row's
 scenario (``scenario_index`` and a column per axis); its summary's
@@ -55,6 +58,17 @@ def _max_or_none(values: np.ndarray):
     return float(np.max(vals)) if vals.size else None
 
 
+def recovery_rate(results: dict) -> float | None:
+    """Share of the finite rollouts that recovered (``None`` if every one went non-finite)."""
+    finite = ~np.asarray(results["nan"], bool)
+    return float(np.mean(recovered(results)[finite])) if finite.any() else None
+
+
+def percent(rate: float | None) -> str:
+    """A rate for people: ``"62.5%"``, or ``"n/a"`` for ``None`` (no finite rollout)."""
+    return "n/a" if rate is None else f"{rate:.1%}"
+
+
 def per_phase(config: SweepConfig, results: dict) -> list[dict]:
     """Per push timing: the largest impulse recovered (N s and N), the largest up to which every impulse of
     the grid was recovered (``recovered_up_to_ns``; ``None`` if the smallest fell), the recovery rate."""
@@ -69,7 +83,8 @@ def per_phase(config: SweepConfig, results: dict) -> list[dict]:
         rows.append(dict(
             phase=float(ph), max_recovered_impulse_ns=best, recovered_up_to_ns=up_to,
             max_recovered_force_n=None if best is None else best / config.push_duration_s,
-            recovery_rate=float(np.mean(ok[sel])), nan_rollouts=int(np.sum(results["nan"][sel])),
+            recovery_rate=recovery_rate({k: v[sel] for k, v in results.items() if k in ("fell", "nan")}),
+            nan_rollouts=int(np.sum(results["nan"][sel])),
         ))
     return rows
 
@@ -95,7 +110,7 @@ def _scenario_summary(cfg: SweepConfig, res: dict) -> list[dict]:
         sub = scenario_rows(cfg, res, s)
         ok = recovered(sub)
         cyc = _cycle_stats(sub, ok)
-        out.append(dict(scenario_index=s, scenario=values, recovery_rate=float(np.mean(ok)),
+        out.append(dict(scenario_index=s, scenario=values, recovery_rate=recovery_rate(sub),
                         fell=int(np.sum(sub["reason"] == "fell")), nan=int(np.sum(sub["reason"] == "nan")),
                         **cyc, per_phase=per_phase(cfg, sub)))
     return out
@@ -118,7 +133,7 @@ def summarize(run: SweepRun) -> dict:
     return dict(
         model=cfg.model, controller=cfg.controller, controller_overrides=cfg.to_dict()["controller_overrides"],
         direction=cfg.direction, push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
-        rollouts=int(cfg.n_rollouts), recovery_rate=float(np.mean(ok)),
+        rollouts=int(cfg.n_rollouts), recovery_rate=recovery_rate(res),
         fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
         median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
         max_abs_footstep_adjustment_m=_max_or_none(res["max_abs_footstep_adjustment_m"][ok]),
@@ -144,7 +159,8 @@ def phase_rows(cfg: SweepConfig, res: dict) -> list[dict]:
         return per_phase(cfg, res)
     subs = [scenario_rows(cfg, res, s) for s in range(cfg.n_scenarios)]
     ok = np.all([recovered(sub) for sub in subs], axis=0)
-    first = dict(subs[0], fell=~ok, nan=np.any([sub["nan"] for sub in subs], axis=0))
+    nan = np.any([sub["nan"] for sub in subs], axis=0)
+    first = dict(subs[0], fell=~ok & ~nan, nan=nan)
     return per_phase(cfg, first)
 
 
@@ -264,14 +280,14 @@ def compare_table(runs: list[SweepRun]) -> dict:
                                             for c in per}))
     out = dict(
         controllers=list(per), direction=cfg.direction, push_duration_s=cfg.push_duration_s,
-        recovery_rate={r.config.controller: float(np.mean(recovered(r.results))) for r in runs},
+        recovery_rate={r.config.controller: recovery_rate(r.results) for r in runs},
         per_phase=rows,
         wall_s={r.config.controller: r.timing["wall_s"] for r in runs},
     )
     if cfg.scenario:
         out["scenarios"] = cfg.scenarios()
         out["recovery_rate_per_scenario"] = {
-            r.config.controller: [float(np.mean(recovered(scenario_rows(r.config, r.results, s))))
+            r.config.controller: [recovery_rate(scenario_rows(r.config, r.results, s))
                                   for s in range(r.config.n_scenarios)] for r in runs}
     return out
 
@@ -288,5 +304,5 @@ def format_compare_table(table: dict) -> str:
             v = row[f"{c}_max_recovered_impulse_ns"]
             cells.append(f"{'none':>22}" if v is None else f"{v:>11.2f} ({v / dur:>7.1f})")
         lines.append(f"{row['phase']:>6.3f} " + " ".join(cells))
-    lines.append("recovery rate " + ", ".join(f"{c} {table['recovery_rate'][c]:.1%}" for c in ctrls))
+    lines.append("recovery rate " + ", ".join(f"{c} {percent(table['recovery_rate'][c])}" for c in ctrls))
     return "\n".join(lines)

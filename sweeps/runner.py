@@ -220,7 +220,7 @@ def _clean(out: dict) -> dict:
     nan = np.asarray(out["nan"], bool) | ~np.isfinite(adj) | np.isnan(np.asarray(out["fall_time_s"], float))
     out["nan"] = nan
     out["max_abs_footstep_adjustment_m"] = np.where(nan, np.nan, adj)
-    out["fell"] = np.asarray(out["fell"], bool) | nan
+    out["fell"] = np.asarray(out["fell"], bool) & ~nan  # one meaning: fell is a finite rollout that fell
     out["steps_to_recover"] = np.where(nan, -1, np.asarray(out["steps_to_recover"], np.int32))
     return out
 

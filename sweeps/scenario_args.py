@@ -115,11 +115,13 @@ def compare_groups(plans: list) -> dict[Path, list[int]]:
 def describe(summary: dict) -> str:
     """One line per scenario of a summary: its values, recovery rate and largest recovered impulse per phase
     ("" without scenario axes)."""
+    from sweeps.report import percent
+
     lines = []
     for r in summary.get("per_scenario") or ():
         vals = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in r["scenario"].items())
         best = ", ".join(f"{p['phase']:.2f}: " + ("-" if p["max_recovered_impulse_ns"] is None
                                                   else f"{p['max_recovered_impulse_ns']:g}") for p in r["per_phase"])
-        lines.append(f"  scenario {r['scenario_index']} ({vals}): {r['recovery_rate']:.1%} recovered, "
+        lines.append(f"  scenario {r['scenario_index']} ({vals}): {percent(r['recovery_rate'])} recovered, "
                      f"{r['fell']} fell, {r['nan']} NaN; largest recovered impulse (N s) per phase: {best}")
     return "\n".join(lines)

@@ -31,12 +31,16 @@ def test_nan_rollouts_are_failures_with_a_reason_not_statistics(tmp_path, fake_m
     assert list(run.results["reason"][:5]) == ["", "", "fell", "nan", "nan"]
     assert list(run.results["steps_to_recover"][:5]) == [2, 2, 2, -1, -1]
     summary = report.write_outputs(tmp_path, run)
-    assert summary["nan"] == 4 and summary["fell"] == 2 and summary["recovery_rate"] == pytest.approx(0.4)
+    assert summary["nan"] == 4 and summary["fell"] == 2 and summary["recovery_rate"] == pytest.approx(4 / 6)
+    assert summary["per_phase"][0]["recovery_rate"] == pytest.approx(2 / 3)  # NaN rows left out of every rate
+    assert not np.any(run.results["fell"] & run.results["nan"])  # one meaning of fell in rows and summary
+    assert int(run.results["fell"].sum()) == summary["fell"]
     assert summary["per_phase"][0]["max_recovered_impulse_ns"] == 1.0
     assert summary["per_phase"][0]["recovered_up_to_ns"] == 1.0
     assert summary["max_abs_footstep_adjustment_m"] == pytest.approx(0.01)
     rows = [line.split(",") for line in (tmp_path / "results.csv").read_text().splitlines()[1:]]
     assert [r[-1] for r in rows[:5]] == ["", "", "fell", "nan", "nan"]
+    assert [r[5] for r in rows[:5]] == ["0", "0", "1", "0", "0"]  # the csv's fell column: the same meaning
     assert "NaN" not in (tmp_path / "summary.json").read_text()
 
 
