@@ -90,3 +90,15 @@ def check_output_dir(flag: str, path) -> None:
     anc = _existing_ancestor(p.resolve())
     if not _can_write_in(anc):
         raise ValueError(f"{flag} {str(path)!r}: cannot write into {str(anc)!r}")
+
+
+def check_no_overwrite(flag: str, folder, names, force: bool) -> None:
+    """Refuse to replace a finished result without ``--force``.
+
+    Raises:
+        ValueError: ``folder`` holds one of ``names`` and ``force`` is off; the message names them.
+    """
+    found = [n for n in names if (Path(folder) / n).exists()]
+    if found and not force:
+        raise ValueError(f"{flag} {str(folder)!r} already holds {', '.join(found)}: use --force to replace it, "
+                         f"or another {flag}")

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxlp.cliutil import check_output_dir
+from jaxlp.cliutil import check_no_overwrite, check_output_dir
 from sweeps.grid import DIRECTIONS_RAD, GridError, parse_impulses, parse_phases
 
 HELP = "largest recoverable impulse per push timing: safeguarded Newton on the margin vs bisection"
@@ -75,12 +75,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tol", type=float, default=None, help="Newton tolerance, N s (default: half the grid step)")
     p.add_argument("--no-map", action="store_true", help="skip the basin map (boundaries only)")
     p.add_argument("--out", type=Path, default=Path("region-out"), help="output folder (default region-out)")
+    p.add_argument("--force", action="store_true", help="replace a finished region run in --out")
     p.add_argument("--no-progress", action="store_true")
 
 
 def _check(args) -> dict | None:
     """Validate the arguments; return the tuned record (or ``None``). Raises ``ValueError``."""
     check_output_dir("--out", args.out)
+    check_no_overwrite("--out", args.out, ("region.json",), args.force)
     imp = np.asarray(args.impulses, float)
     if imp.size < 3 or np.any(np.diff(imp) <= 0):
         raise ValueError(f"--impulses must be at least 3 increasing values, got {args.impulses}")

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxlp.cliutil import check_output_dir
+from jaxlp.cliutil import check_no_overwrite, check_output_dir
 
 PLANTS = ("3lp", "mjx")
 OPTIMIZERS = ("adam", "adamw", "sgd")
@@ -269,6 +269,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--holdout-model", choices=PLANTS, default=None,
                    help="the model of the held-out sweeps (default: the plant)")
     p.add_argument("--out", type=Path, default=Path("tune-out"), help="output folder (default tune-out)")
+    p.add_argument("--force", action="store_true", help="replace a finished tuning run in --out")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--x64", action="store_true", help="64-bit floats")
 
@@ -303,6 +304,7 @@ def run(args, parser) -> int:
     try:
         config = config_from_args(args)
         check_output_dir("--out", args.out)
+        check_no_overwrite("--out", args.out, ("tuned.json",), args.force)
         if config.plant == "3lp":
             from jaxlp.presets import get_params
 

@@ -12,7 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from jaxlp.cliutil import Parser, check_output_file, interrupted, refuse
+from jaxlp.cliutil import Parser, check_no_overwrite, check_output_file, interrupted, refuse
 from jaxlp.files import save_text_atomic, strict_json
 
 PROG = "python -m mjx_coman.studies"
@@ -33,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--plot", default=None, help="draw the experiment's figure to this .png/.pdf/.svg")
     p.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
+    p.add_argument("--force", action="store_true", help="replace an existing --out file")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -49,6 +50,8 @@ def validate(args) -> None:
         raise ValueError(f"--batch must lie in [1, 1024], got {args.batch}")
     check_output_file("--plot", args.plot, PLOT_SUFFIXES)
     check_output_file("--out", args.out)
+    if args.out is not None:
+        check_no_overwrite("--out", Path(args.out).parent, (Path(args.out).name,), args.force)
     from mjx_coman import controllers
 
     args.overrides = controllers.parse_overrides(controllers.get(args.controller), args.set)

@@ -36,6 +36,14 @@ def test_output_file_checks(tmp_path):
     assert list(tmp_path.iterdir()) == []  # the probes leave nothing behind
 
 
+def test_a_finished_result_is_not_replaced_without_force(tmp_path):
+    cliutil.check_no_overwrite("--out", tmp_path, ("tuned.json",), force=False)  # nothing there yet
+    (tmp_path / "tuned.json").write_text("{}")
+    with pytest.raises(ValueError, match="already holds tuned.json: use --force"):
+        cliutil.check_no_overwrite("--out", tmp_path, ("tuned.json", "loss.png"), force=False)
+    cliutil.check_no_overwrite("--out", tmp_path, ("tuned.json",), force=True)
+
+
 def test_output_dir_checks(tmp_path):
     cliutil.check_output_dir("--out", tmp_path / "new" / "deeper")  # made later, under a writable folder
     (tmp_path / "f").write_text("x")

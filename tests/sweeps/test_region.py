@@ -98,6 +98,12 @@ def test_region_command_draws_the_boundary_over_the_map(tmp_path):
     assert (tmp_path / "map-forward" / "results.npz").exists() or (tmp_path / "map-forward" / "chunks").exists()
     for name in ("boundary.png", "regions.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    before = (tmp_path / "region.json").read_bytes()
+    again = p.parse_args(["--phases", "2", "--impulses", "0:16:5", "--controllers", "time-projection",
+                          "--directions", "forward", "--out", str(tmp_path), "--no-progress"])
+    with pytest.raises(SystemExit) as exc:  # another grid into a finished run: refused before any work
+        region_cli.run(again, p)
+    assert exc.value.code == 2 and (tmp_path / "region.json").read_bytes() == before
 
 
 @pytest.mark.skipif(not _registered(), reason="coman-sweep region is not registered in sweeps.cli yet")

@@ -20,6 +20,17 @@ def tiny_run(tmp_path_factory):
     return out, record
 
 
+def test_a_finished_run_is_not_replaced_without_force(tiny_run, capsys):
+    from sweeps import cli
+
+    out, _ = tiny_run
+    before = (out / "tuned.json").read_bytes()
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["tune", "--out", str(out), "--no-progress"])
+    assert exc.value.code == 2 and "already holds tuned.json: use --force" in capsys.readouterr().err
+    assert (out / "tuned.json").read_bytes() == before
+
+
 def test_tiny_budget_lowers_the_training_loss(tiny_run):
     _, record = tiny_run
     loss = record["history"]["loss"]

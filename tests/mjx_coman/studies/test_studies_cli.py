@@ -34,6 +34,13 @@ def test_bad_arguments_exit_2_with_one_line(args, word, capsys, no_build):
     assert err.count("\n") == 1 and word in err and err.startswith(cli.PROG)
 
 
+def test_an_existing_out_file_is_not_replaced_without_force(tmp_path, capsys, no_build):
+    out = tmp_path / "speeds.json"
+    out.write_text("{}")
+    assert cli.main(["speeds", "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err and out.read_text() == "{}"
+
+
 def test_unknown_size_is_an_argparse_error(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["speeds", "--size", "huge"])
