@@ -2,6 +2,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from jaxlp import gait as G
 from jaxlp.control import M_ERR, SWAP
@@ -80,3 +81,32 @@ def test_gait_gradient_wrt_step_time(coman):
 def test_bad_gait_raises(coman, kwargs, match):
     with pytest.raises(ValueError, match=match):
         G.periodic_gait(coman, **kwargs)
+
+
+def test_infeasible_gaits_are_refused_by_their_reason():
+    from jaxlp.gait import MAX_STEP_TIME_S, check_feasible
+    from jaxlp.presets import get_params
+
+    p = get_params("coman")
+    for kw, match in ((dict(step_time_s=1000.0, speed_mps=0.0), "longer than 2.0 s"),
+                      (dict(step_time_s=0.4, speed_mps=5.0), "infeasible"),
+                      (dict(step_time_s=0.4, speed_mps=0.1, step_width_m=100.0), "wider than 1 h1")):
+        with pytest.raises(ValueError, match=match):
+            check_feasible(p, **kw)
+    check_feasible(p, MAX_STEP_TIME_S, 0.0, 0.1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(t=st.floats(allow_nan=True, allow_infinity=True), v=st.floats(allow_nan=True, allow_infinity=True),
+       w=st.floats(allow_nan=True, allow_infinity=True))
+def test_check_feasible_refuses_or_accepts_in_range(t, v, w):
+    from jaxlp.gait import MAX_STEP_LENGTH_RATIO, MAX_STEP_TIME_S, check_feasible
+    from jaxlp.presets import get_params
+
+    p = get_params("coman")
+    h1 = float(p.h1)
+    try:
+        check_feasible(p, t, v, w)
+    except ValueError:
+        return
+    assert 0 < t <= MAX_STEP_TIME_S and abs(v) * t <= MAX_STEP_LENGTH_RATIO * h1 and 0 <= w <= h1
