@@ -1,0 +1,59 @@
+"""Every command line refuses bad input the same way: exit status 2, one line on stderr naming the value,
+no traceback, and nothing left behind in the output folder (issue 22's table, in process: no compile)."""
+
+import importlib
+
+import pytest
+
+ENTRY_POINTS = {  # name -> module whose main(argv) the console script or ``python -m`` runs
+    "jaxlp": "jaxlp.__main__", "walk": "mjx_coman.walk", "seed000": "mjx_coman.seed000.cli",
+    "experiments": "mjx_coman.experiments", "studies": "mjx_coman.studies.cli", "coman-sweep": "sweeps.cli",
+}
+OUT = "OUT"  # replaced by a fresh folder under tmp_path, which must stay absent
+
+CASES = [
+    ("jaxlp", ["info", "--step-width", "100"], "step_width_m"),
+    ("jaxlp", ["info", "--speed", "5"], "speed_mps"),
+    ("jaxlp", ["info", "--step-time", "1000"], "step_time_s"),
+    ("jaxlp", ["info", "--robot", "foo"], "foo"),
+    ("walk", ["--seconds", "nan"], "--seconds"),
+    ("walk", ["--plot", "/proc/x.png"], "/proc/x.png"),
+    ("walk", ["--seed", str(2**70)], "--seed"),
+    ("walk", ["--push-phase", "1.5"], "--push-phase"),
+    ("seed000", ["push-table", "--seed", str(2**70)], "--seed"),
+    ("seed000", ["push-table", "--supply-v", "-1"], "supply_v"),
+    ("seed000", ["identify", "--seconds", "1", "--settle", "5"], "settle_s"),
+    ("experiments", ["stand", "--duration", "0"], "--duration"),
+    ("experiments", ["stand", "--duration", "nan"], "--duration"),
+    ("experiments", ["knee", "--duration", "3"], "--duration"),
+    ("experiments", ["ankle", "--spring", "nan"], "spring_stiffness"),
+    ("studies", ["speeds", "--plot", "/proc/x.png"], "/proc/x.png"),
+    ("studies", ["speeds", "--seed", "-1"], "seed"),
+    ("coman-sweep", ["map", "--push-duration", "inf", "--out", OUT], "push_duration_s"),
+    ("coman-sweep", ["map", "--bias", "nan", "--out", OUT], "bias_m"),
+    ("coman-sweep", ["map", "--speed", "5", "--out", OUT], "infeasible"),
+    ("coman-sweep", ["map", "--step-time", "1000", "--out", OUT], "step_time_s"),
+    ("coman-sweep", ["map", "--model", "mjx", "--robot", "foo", "--out", OUT], "robot"),
+    ("coman-sweep", ["map", "--n-steps", "1000000000", "--out", OUT], "n_steps"),
+    ("coman-sweep", ["map", "--seed", str(2**70), "--out", OUT], "seed"),
+    ("coman-sweep", ["compare", "--controllers", "dlqr,pid", "--out", OUT], "'pid'"),
+    ("coman-sweep", ["tune", "--lr", "inf", "--out", OUT], "learning_rate"),
+    ("coman-sweep", ["region", "--draws", "0", "--out", OUT], "draws"),
+    ("coman-sweep", ["region", "--out", "/proc/x"], "/proc"),
+]
+
+
+@pytest.mark.parametrize("name,argv,word", CASES, ids=[f"{c[0]}:{' '.join(c[1][:3])}" for c in CASES])
+def test_bad_input_is_one_line_exit_2_and_leaves_nothing(name, argv, word, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = [str(out) if a == OUT else a for a in argv]
+    main = importlib.import_module(ENTRY_POINTS[name]).main
+    try:
+        code = main(argv)
+    except SystemExit as e:  # argparse's own refusals
+        code = e.code
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "Failed to import warp" not in line]
+    assert code == 2, err
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in err, err
+    assert not out.exists()
