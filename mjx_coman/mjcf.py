@@ -337,6 +337,15 @@ def write_assets(out_dir: Path | None = None) -> tuple[Path, Path]:
     return p1, p2
 
 
-if __name__ == "__main__":
+def main(argv=None) -> int:
+    """``python -m mjx_coman.mjcf``: regenerate the MJCF and its tables; it takes no options."""
+    from jaxlp.cliutil import Parser
+
+    Parser(prog="python -m mjx_coman.mjcf", description="regenerate the COMAN MJCF and its tables").parse_args(argv)
     for p in write_assets():
         print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

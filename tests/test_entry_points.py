@@ -8,6 +8,7 @@ import pytest
 ENTRY_POINTS = {  # name -> module whose main(argv) the console script or ``python -m`` runs
     "jaxlp": "jaxlp.__main__", "walk": "mjx_coman.walk", "seed000": "mjx_coman.seed000.cli",
     "experiments": "mjx_coman.experiments", "studies": "mjx_coman.studies.cli", "coman-sweep": "sweeps.cli",
+    "mjcf": "mjx_coman.mjcf",
 }
 OUT = "OUT"  # replaced by a fresh folder under tmp_path, which must stay absent
 
@@ -40,7 +41,34 @@ CASES = [
     ("coman-sweep", ["tune", "--lr", "inf", "--out", OUT], "learning_rate"),
     ("coman-sweep", ["region", "--draws", "0", "--out", OUT], "draws"),
     ("coman-sweep", ["region", "--out", "/proc/x"], "/proc"),
+    ("mjcf", ["--bogus"], "--bogus"),
 ]
+
+
+def _runnable_modules():
+    """Every module a user can run: ``X/__main__.py`` (resolved to the module it takes ``main`` from) and
+    every module with an ``if __name__ == "__main__"`` block, under the three packages."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    found = set()
+    for pkg in ("jaxlp", "mjx_coman", "sweeps"):
+        for path in (root / pkg).rglob("*.py"):
+            mod = ".".join(path.relative_to(root).with_suffix("").parts)
+            tree = ast.parse(path.read_text())
+            if path.name == "__main__.py":
+                src = [n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                       and any(a.name == "main" for a in n.names)]
+                found.add(src[0] if src else mod)
+            elif any(isinstance(n, ast.If) and "__main__" in ast.unparse(n.test) for n in tree.body):
+                found.add(mod)
+    return found
+
+
+def test_every_runnable_module_is_in_the_table():
+    assert _runnable_modules() <= set(ENTRY_POINTS.values())
+    assert {ENTRY_POINTS[c[0]] for c in CASES} == set(ENTRY_POINTS.values())  # each has a bad-input case
 
 
 @pytest.mark.parametrize("name,argv,word", CASES, ids=[f"{c[0]}:{' '.join(c[1][:3])}" for c in CASES])

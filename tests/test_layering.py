@@ -13,7 +13,7 @@ CLI_MODULES = {"mjx_coman.walk", "mjx_coman.seed000.cli", "mjx_coman.seed000.__m
                "jaxlp.__main__", "sweeps.__main__"}
 ENTRY_IMPORTERS = {"sweeps.cli", "sweeps.__main__"}  # the command line registers the subcommands
 CLI_SUPPORT = "jaxlp.cliutil"  # what the command lines share; only they import it
-CLI_USERS = {"sweeps.tune"}  # library modules that also hold a subcommand's run function
+CLI_USERS = {"sweeps.tune", "mjx_coman.mjcf"}  # library modules that also hold a command line's main
 
 
 def _modules():
