@@ -113,6 +113,8 @@ def reference(tmp_path_factory):
 def test_map_writes_outputs_and_the_basin_is_physical(reference):
     for name in ("results.npz", "results.csv", "basin.png", "summary.json"):
         assert (reference / name).stat().st_size > 0
+    for name in ("summary.json", "config.json"):  # strict JSON: no NaN or Infinity tokens
+        json.loads((reference / name).read_text(), parse_constant=lambda c: pytest.fail(f"{name} holds {c}"))
     summary = json.loads((reference / "summary.json").read_text())
     assert summary["rollouts"] == 24 and summary["device_count"] == 1 and summary["chunks_run"] == 6
     assert len(summary["per_phase"]) == 4 and summary["env_steps_per_s"] > 0 and summary["env_step_s"] == 0.002
