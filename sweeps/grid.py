@@ -30,6 +30,9 @@ RESULTS_VERSION = 2  # in every hash: 2 judges MJX walks on ground truth (steps 
 SCENARIO_AXES = ("delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
 MJX_CONTROL_PERIOD_S = 0.002
 MAX_N_STEPS = 200  # 80 s of 0.4 s steps; a billion steps was an out-of-memory traceback
+MAX_AXIS = 100_000  # values of one grid axis (--phases N, --impulses a:b:N), checked before any is made
+MAX_ROLLOUTS = 10_000_000  # per sweep: its results alone take about RESULT_BYTES each in memory
+RESULT_BYTES = 160  # per rollout in results.npz and in memory (about 16 columns of 4-8 bytes, plus the csv row)
 
 
 class GridError(ValueError):
@@ -48,6 +51,8 @@ def parse_phases(text: str) -> tuple[float, ...]:
             n = int(text)
             if n < 1:
                 raise GridError(f"--phases must be a count >= 1 or a list in [0, 1), got {text!r}")
+            if n > MAX_AXIS:
+                raise GridError(f"--phases {n} is more than {MAX_AXIS} timings")
             return tuple(float(k) / n for k in range(n))
         vals = tuple(float(v) for v in text.split(",") if v.strip())
     except GridError:
@@ -76,6 +81,8 @@ def parse_impulses(text: str) -> tuple[float, ...]:
             start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
             if num < 1:
                 raise GridError(f"--impulses gives an empty grid: {text!r}")
+            if num > MAX_AXIS:
+                raise GridError(f"--impulses {text!r} asks for {num} impulses, more than {MAX_AXIS}")
             vals = tuple(float(v) for v in np.linspace(start, stop, num))
         else:
             vals = tuple(float(v) for v in text.split(",") if v.strip())
@@ -212,6 +219,9 @@ class SweepConfig:
         if self.chunk < 1:
             raise GridError(f"chunk must be >= 1, got {self.chunk}")
         self._validate_scenario()
+        if self.n_rollouts > MAX_ROLLOUTS:
+            raise GridError(f"the grid has {self.n_rollouts} rollouts (about {self.n_rollouts * RESULT_BYTES / 1e9:.1f} "
+                            f"GB of results), more than {MAX_ROLLOUTS}; use fewer phases, impulses or scenario values")
         return self
 
     def _validate_scenario(self) -> None:

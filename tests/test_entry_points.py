@@ -37,6 +37,8 @@ CASES = [
     ("coman-sweep", ["map", "--model", "mjx", "--robot", "foo", "--out", OUT], "robot"),
     ("coman-sweep", ["map", "--n-steps", "1000000000", "--out", OUT], "n_steps"),
     ("coman-sweep", ["map", "--seed", str(2**70), "--out", OUT], "seed"),
+    ("coman-sweep", ["map", "--impulses", "0:20:1000000000", "--out", OUT], "--impulses"),
+    ("coman-sweep", ["map", "--phases", "10000", "--impulses", "0:20:10000", "--out", OUT], "GB of results"),
     ("coman-sweep", ["compare", "--controllers", "dlqr,pid", "--out", OUT], "'pid'"),
     ("coman-sweep", ["tune", "--lr", "inf", "--out", OUT], "learning_rate"),
     ("coman-sweep", ["region", "--draws", "0", "--out", OUT], "draws"),
