@@ -87,9 +87,11 @@ class TuneConfig:
             raise ValueError(f"unknown plant {self.plant!r}; choose one of {', '.join(PLANTS)}")
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"unknown optimizer {self.optimizer!r}; choose one of {', '.join(OPTIMIZERS)}")
-        for name in ("steps", "batch"):
-            if not getattr(self, name) >= 1:
-                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        for name, most in (("steps", 100_000), ("batch", 100_000)):
+            if not 1 <= getattr(self, name) <= most:
+                raise ValueError(f"{name} must lie in [1, {most}], got {getattr(self, name)}")
+        if not 0 <= self.seed < 2**32 - 1:  # the held-out sets use seed + 1
+            raise ValueError(f"seed must lie in [0, 2**32 - 1), got {self.seed}")
         if not 4 <= self.n_steps <= 100:
             raise ValueError(f"n_steps must lie in [4, 100] (pushes come in step 2), got {self.n_steps}")
         if not 0 <= self.push_step <= 20:

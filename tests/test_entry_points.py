@@ -41,6 +41,8 @@ CASES = [
     ("coman-sweep", ["map", "--phases", "10000", "--impulses", "0:20:10000", "--out", OUT], "GB of results"),
     ("coman-sweep", ["compare", "--controllers", "dlqr,pid", "--out", OUT], "'pid'"),
     ("coman-sweep", ["tune", "--lr", "inf", "--out", OUT], "learning_rate"),
+    ("coman-sweep", ["tune", "--seed", str(2**70), "--out", OUT], "seed"),
+    ("coman-sweep", ["tune", "--batch", "1000000000", "--out", OUT], "batch"),
     ("coman-sweep", ["region", "--draws", "0", "--out", OUT], "draws"),
     ("coman-sweep", ["region", "--out", "/proc/x"], "/proc"),
     ("mjcf", ["--bogus"], "--bogus"),
