@@ -34,7 +34,6 @@ rollouts each, timed together; the output says when it did.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import platform
@@ -42,6 +41,7 @@ import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads; see the module docstring
 
+from jaxlp.files import strict_json
 from jaxlp.xla_flags import configure_cpu
 
 configure_cpu()  # the project's XLA CPU flags, before JAX starts (jaxlp.xla_flags)
@@ -269,7 +269,7 @@ def main(argv=None) -> int:
         "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
     }
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(strict_json(out, indent=2))
         return 0
     print(f"3LP closed loop, time projection: {ticks} ticks per rollout ({spec.n_steps} steps, "
           f"{spec.dt_s * 1e3:g} ms), {out['dtype']}, {out['device']} ({out['cpu_count']} CPUs, jax {jax.__version__})")

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import time
@@ -22,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxlp.files import strict_json
 from mjx_coman import env
 from mjx_coman.actuators import make_actuator_params
 
@@ -78,7 +78,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = bench(tuple(args.batch), args.ticks, args.repeats)
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(strict_json(out, indent=2))
     else:
         print(f"{out['device']}  ({out['cpu_count']} CPUs, jax {out['jax']})")
         for r in out["results"]:

@@ -16,7 +16,6 @@ one compilation), env-steps (control ticks) per second of the second call.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
@@ -27,6 +26,7 @@ import numpy as np
 
 from jaxlp import footsteps as fs
 from jaxlp import lipm
+from jaxlp.files import strict_json
 
 SEED_001_MPC_MS = 0.2
 SEED_001_QP_FIXED_UPPER_BODY_MS = 0.7
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
                seed_001_ms=dict(mpc=SEED_001_MPC_MS, qp_fixed_upper_body=SEED_001_QP_FIXED_UPPER_BODY_MS),
                walk=time_walk(a.walk_batch, a.walk_seconds))
     if a.json:
-        print(json.dumps(out, indent=2))
+        print(strict_json(out, indent=2))
     else:
         for r in out["mpc"]:
             print(f"MPC {r['solver']:11s} batch {r['batch']:5d}: {r['ms_per_problem']:.4f} ms/problem "

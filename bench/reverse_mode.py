@@ -16,7 +16,6 @@ temporary memory of each compiled gradient (``memory_analysis``).
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
 
@@ -24,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxlp.files import strict_json
 from mjx_coman import controllers
 from mjx_coman import rollout as ro
 from mjx_coman.env import solver_iterations
@@ -108,7 +108,7 @@ def main(argv=None) -> int:
     if args.grad:
         out["gradient"] = gradients()
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(strict_json(out, indent=2))
     else:
         for name, row in out["accuracy"].items():
             print(name, row)

@@ -38,7 +38,6 @@ from jaxlp.xla_flags import configure_cpu
 configure_cpu()  # the project's XLA CPU flags, before JAX starts (jaxlp.xla_flags)
 
 import argparse  # noqa: E402
-import json
 import os
 import platform
 import time
@@ -49,6 +48,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import numpy_twin  # noqa: E402  (bench/: run as python bench/sweep_throughput.py)
+from jaxlp.files import strict_json  # noqa: E402
 from sweeps.grid import SweepConfig  # noqa: E402
 from sweeps.models import RolloutInputs  # noqa: E402
 from sweeps.models import mjx as model_mjx  # noqa: E402
@@ -267,7 +267,7 @@ def main(argv=None) -> int:
         mjx_runs=mjx_runs, native=native,
     )
     if args.json:
-        print(json.dumps(out, indent=1))
+        print(strict_json(out, indent=1))
     else:
         for r in mjx_runs:
             print(f"MJX batch {r['batch']:5d}: {r['env_steps_per_s']:12.0f} env steps/s "

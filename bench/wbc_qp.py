@@ -19,7 +19,6 @@ Seed 001 reports 1.2 ms per QP (0.7 ms with the upper body fixed) with CVXGEN on
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
@@ -34,6 +33,7 @@ import qpax  # noqa: E402
 import qpsolvers  # noqa: E402
 
 import mjx_coman  # noqa: E402
+from jaxlp.files import strict_json
 from mjx_coman import wbc  # noqa: E402
 from mjx_coman.env import standing_posture  # noqa: E402
 from mjx_coman.wbc import reference as ref  # noqa: E402
@@ -175,7 +175,7 @@ def main(argv=None) -> int:
     else:
         out = bench(tuple(args.batch), args.repeats, not args.no_float32, args.latency_calls)
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(strict_json(out, indent=2))
         return 0
     print(f"{out['device']}  ({out['cpu_count']} CPUs, jax {out['jax']}, qpax {out['qpax']}); "
           f"seed 001 (CVXGEN, Core i5 1.7 GHz): {SEED_001_MS['full']} ms full, {SEED_001_MS['fixed_upper_body']} ms "
