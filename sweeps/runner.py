@@ -99,8 +99,8 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool = True, 
 
     The same sweep keeps its finished chunks (``resume`` is accepted for the
     command line's ``--resume`` and changes nothing: results are
-    deterministic); ``force`` wipes them. A different sweep's finished work (or
-    results with no ``config.json``) is refused unless ``force``; a
+    deterministic). A different sweep's finished work (or results with no
+    ``config.json``) is refused unless ``force``, which wipes it; a
     ``config.json`` with no finished work (a run that died before its first
     chunk) is replaced.
 
@@ -110,7 +110,7 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool = True, 
     del resume
     out_dir = Path(out_dir)
     chunk_dir = out_dir / CHUNK_DIR
-    fresh = force
+    fresh = False
     if (out_dir / "config.json").exists():
         old = stored_hash(out_dir)
         if old != config.hash() and _finished_work(out_dir) and not force:
