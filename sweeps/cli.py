@@ -333,9 +333,8 @@ def _describe(summary: dict, out: Path) -> str:
                    f"strongest phase {hi_ph:.2f} recovers {hi:g} N s ({hi / dur:g} N)")
     return (
         f"{summary['model']} / {summary['controller']}: {summary['direction']} {summary['push_duration_s']:g} s pushes "
-        f"during step {summary['push_step']}: {percent(summary['recovery_rate'])} of the finite of {summary['rollouts']} "
-        f"rollouts recovered "
-        f"({summary['fell']} fell, {summary['nan']} NaN)\n"
+        f"during step {summary['push_step']}: {percent(summary['recovery_rate'])} of {summary['rollouts']} rollouts "
+        f"recovered ({summary['fell']} fell, {summary['nan']} NaN, left out of the rate)\n"
         f"largest recovered impulse (N s) per phase of the step"
         + (" (recovered in every scenario; each scenario below)" if summary.get("per_scenario") else "")
         + f": {best}\n{verdict}\n"
