@@ -75,6 +75,17 @@ def test_every_runnable_module_is_in_the_table():
     assert {ENTRY_POINTS[c[0]] for c in CASES} == set(ENTRY_POINTS.values())  # each has a bad-input case
 
 
+@pytest.fixture(autouse=True)
+def _keep_jax_float_width():
+    """``python -m jaxlp`` turns on 64-bit floats for its process; in process here, the next tests must not
+    inherit it (float32 scans of the MJX tests fail on float64 carries)."""
+    import jax
+
+    x64 = jax.config.jax_enable_x64
+    yield
+    jax.config.update("jax_enable_x64", x64)
+
+
 @pytest.mark.parametrize("name,argv,word", CASES, ids=[f"{c[0]}:{' '.join(c[1][:3])}" for c in CASES])
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(name, argv, word, tmp_path, capsys):
     out = tmp_path / "out"
