@@ -20,6 +20,13 @@ SHARED_GROUPS = {
 }
 
 
+# Groups that take a minute or more on 2 cores (``--durations``), longest first.
+LONGEST_FIRST = ("studies-subprocesses", "walk-subprocesses", "walks", "torque-walks-footstep-mpc",
+                 "torque-walks-wbc-stand", "tests/mjx_coman/test_env.py", "tests/sweeps/test_sweeps.py",
+                 "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py", "tests/jaxlp/test_simulate.py",
+                 "tests/mjx_coman/test_notebook_02.py", "tests/mjx_coman/test_sensors.py")
+
+
 @pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the markers into the node ids
 def pytest_collection_modifyitems(config, items):
     group_of = {f: g for g, files in SHARED_GROUPS.items() for f in files}
@@ -31,6 +38,10 @@ def pytest_collection_modifyitems(config, items):
             if group == "walks" and _torque_controlled(name):
                 group = f"torque-walks-{_family_of(name)}"  # each torque family's batch compiles apart
             item.add_marker(pytest.mark.xdist_group(group))
+    # Longest groups first: xdist hands out groups in collection order, so a long one collected last kept one
+    # worker busy minutes after the other had finished (longest-processing-time-first scheduling).
+    rank = {g: i for i, g in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda it: rank.get(it.get_closest_marker("xdist_group").args[0], len(rank)))
 
 
 def _family_of(name) -> str:
