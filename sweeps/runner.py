@@ -110,15 +110,13 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool = True, 
     del resume
     out_dir = Path(out_dir)
     chunk_dir = out_dir / CHUNK_DIR
-    fresh = False
-    if (out_dir / "config.json").exists():
-        old = stored_hash(out_dir)
-        if old != config.hash() and _finished_work(out_dir) and not force:
-            raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old} != {config.hash()}); "
-                                "use --force to overwrite it or another --out")
-        fresh = fresh or old != config.hash()
-    elif _finished_work(out_dir) and not force:
-        raise SweepConflict(f"{out_dir} holds results of an unknown sweep (no config.json); "
+    known = (out_dir / "config.json").exists()
+    old = stored_hash(out_dir) if known else None
+    fresh = old != config.hash()  # another sweep's folder, or an unknown one: replaced once allowed
+    if fresh and _finished_work(out_dir) and not force:
+        raise SweepConflict(f"{out_dir} holds a different sweep (config hash {old} != {config.hash()}); "
+                            "use --force to overwrite it or another --out" if known else
+                            f"{out_dir} holds results of an unknown sweep (no config.json); "
                             "use --force to overwrite them or another --out")
     out_dir.mkdir(parents=True, exist_ok=True)
     if fresh:

@@ -83,6 +83,9 @@ def test_out_dir_identity(tmp_path):
     (tmp_path / "results.npz").write_bytes(b"x")
     with pytest.raises(SweepConflict, match="unknown sweep"):
         prepare_out_dir(tmp_path, a, force=False)
+    chunk_path(chunks, 0).write_bytes(b"x")
+    prepare_out_dir(tmp_path, a, force=True)  # forced over an unknown sweep: none of its work is kept
+    assert not (tmp_path / "results.npz").exists() and not chunk_path(chunks, 0).exists()
 
 
 def test_unreadable_chunks_are_found_and_removed(tmp_path, capsys):
