@@ -128,26 +128,29 @@ def prepare_out_dir(out_dir: Path, config: SweepConfig, *, resume: bool = True, 
     return chunk_dir
 
 
-def chunk_readable(path: Path) -> bool:
-    """Whether a chunk file is there and whole: every array reads (the zip checks its CRCs) and ``lo < hi``."""
+def read_chunk(path: Path) -> dict | None:
+    """A chunk file's arrays, or ``None`` when it is missing or not whole: every array is read (the zip
+    checks its CRCs) and ``lo < hi``."""
     try:
         with np.load(path) as z:
             arrays = {k: z[k] for k in z.files}
-        return int(arrays["lo"]) < int(arrays["hi"])
+        return arrays if int(arrays["lo"]) < int(arrays["hi"]) else None
     except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile):
-        return False
+        return None
 
 
-def _finished_chunks(chunk_dir: Path, n_chunks: int) -> list[bool]:
-    """Which chunks are finished; an unreadable chunk file is removed (to be recomputed), with one line."""
-    done = []
+def _finished_chunks(chunk_dir: Path, n_chunks: int) -> dict[int, dict]:
+    """The finished chunks' arrays by index, each file read once; an unreadable chunk file is removed (to be
+    recomputed), with one line."""
+    done = {}
     for i in range(n_chunks):
         path = chunk_path(chunk_dir, i)
-        ok = chunk_readable(path)
-        if not ok and path.exists():
+        arrays = read_chunk(path)
+        if arrays is not None:
+            done[i] = arrays
+        elif path.exists():
             print(f"{path}: unreadable (truncated or corrupt): recomputing it", file=sys.stderr)
             path.unlink()
-        done.append(ok)
     return done
 
 
@@ -259,11 +262,12 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
     n_chunks = math.ceil(n / chunk)
     chunk_dir = Path(out_dir) / CHUNK_DIR
     status = np.zeros(n_chunks + 1, np.int32)  # [conflict, done per chunk]
-    conflict = None
+    conflict, resumed = None, {}
     if writer:
         try:
             chunk_dir = prepare_out_dir(out_dir, config, resume=resume, force=force)
-            status[1:] = _finished_chunks(chunk_dir, n_chunks)
+            resumed = _finished_chunks(chunk_dir, n_chunks)
+            status[1:] = [i in resumed for i in range(n_chunks)]
         except SweepConflict as e:
             conflict, status[0] = e, 1
     status = _broadcast_from_0(status)
@@ -309,7 +313,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
             raise SweepInterrupted(Path(out_dir), n_chunks - len(todo) + len(computed), n_chunks) from None
         bar.close()
     _barrier("sweeps: all chunks written")
-    results = _assemble(inputs, [computed.get(i) or chunk_path(chunk_dir, i) for i in range(n_chunks)], n, config) \
+    results = _assemble(inputs, [computed.get(i) or resumed[i] for i in range(n_chunks)], n, config) \
         if writer else None
     ticks = model.ticks_per_rollout(config)
     done = sum(rows(i) for i in todo)
@@ -337,16 +341,11 @@ def _progress(total: int, initial: int, enabled: bool, desc: str | None):
 
 
 def _assemble(inputs, chunks: list, n: int, config: SweepConfig | None = None) -> dict:
-    """Concatenate chunk outcomes (dicts, or files of resumed chunks) into per-rollout arrays (with the
-    scenario of each row, ``scenario_index`` and one column per axis, when the sweep has scenario axes)."""
+    """Concatenate chunk outcomes (computed or read back) into per-rollout arrays (with the scenario of
+    each row, ``scenario_index`` and one column per axis, when the sweep has scenario axes)."""
     parts: dict[str, list] = {}
     for c in chunks:
-        if isinstance(c, dict):
-            items = c.items()
-        else:
-            with np.load(c) as z:
-                items = [(k, z[k]) for k in z.files]
-        for k, v in items:
+        for k, v in c.items():
             if k not in ("lo", "hi"):
                 parts.setdefault(k, []).append(v)
     out = {k: np.concatenate(v) for k, v in parts.items()}

@@ -90,7 +90,7 @@ def test_out_dir_identity(tmp_path):
 
 def test_unreadable_chunks_are_found_and_removed(tmp_path, capsys):
     from jaxlp.files import save_npz_atomic
-    from sweeps.runner import _finished_chunks, chunk_readable
+    from sweeps.runner import _finished_chunks, read_chunk
 
     good = dict(fell=np.zeros(4, bool), lo=np.asarray(0), hi=np.asarray(4))
     for i in range(4):
@@ -101,8 +101,8 @@ def test_unreadable_chunks_are_found_and_removed(tmp_path, capsys):
     flipped = bytearray(whole)
     flipped[60] ^= 0xFF  # a flipped byte inside the first array's data: the zip CRC catches it
     chunk_path(tmp_path, 3).write_bytes(bytes(flipped))
-    assert chunk_readable(chunk_path(tmp_path, 0)) and not chunk_readable(tmp_path / "missing.npz")
-    assert _finished_chunks(tmp_path, 5) == [True, False, False, False, False]
+    assert read_chunk(chunk_path(tmp_path, 0))["hi"] == 4 and read_chunk(tmp_path / "missing.npz") is None
+    assert list(_finished_chunks(tmp_path, 5)) == [0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chunk_00000.npz"]
     err = capsys.readouterr().err
     assert err.count("\n") == err.count("recomputing it\n") == 3
