@@ -66,6 +66,7 @@ JOINT_INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
 SEA_MASK = np.array([n in SEA_JOINTS for n in JOINT_NAMES])  # static structure
 MAX_DELAY_TICKS = 32  # static ring-buffer length is MAX_DELAY_TICKS + 1
 DELAY_S = 0.02  # the position plant's transport delay (make_actuator_params' default)
+SUPPLY_V = 15.0  # the motor drivers' supply, the voltage saturation of the seed (make_actuator_params' default)
 MODE_POSITION, MODE_VOLTAGE, MODE_TORQUE = 0, 1, 2  # what a command's target is: motor angles, volts, link torques
 MODES = {"position": MODE_POSITION, "voltage": MODE_VOLTAGE, "torque": MODE_TORQUE}
 TORQUE_IDEAL, TORQUE_SEA = 0, 1
@@ -143,7 +144,7 @@ def make_actuator_params(
     friction_nms_per_rad=1.66,
     coulomb_nm=0.0,
     coulomb_eps_rad_per_s=0.05,
-    supply_v=15.0,
+    supply_v=SUPPLY_V,
     spring_stiffness_nm_per_rad=390.0,
     spring_damping_nms_per_rad=0.5,
     kp_v_per_rad=None,

@@ -86,7 +86,7 @@ def summary(run) -> dict:
     late = res.get("late_error")
     return dict(
         direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=report.recovery_rate(res),
-        pushed_recovery_rate=report.recovery_rate({k: res[k][pushed] for k in ("fell", "nan")}),
+        pushed_recovery_rate=report.recovery_rate(res, pushed),
         nan=int(np.sum(res["nan"])),
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,

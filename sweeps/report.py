@@ -58,9 +58,9 @@ def _max_or_none(values: np.ndarray):
     return float(np.max(vals)) if vals.size else None
 
 
-def recovery_rate(results: dict) -> float | None:
-    """Share of the finite rollouts that recovered (``None`` if every one went non-finite)."""
-    finite = ~np.asarray(results["nan"], bool)
+def recovery_rate(results: dict, where=True) -> float | None:
+    """Share of the finite rollouts (of those ``where`` selects) that recovered (``None`` if none is finite)."""
+    finite = ~np.asarray(results["nan"], bool) & where
     return float(np.mean(recovered(results)[finite])) if finite.any() else None
 
 
@@ -83,7 +83,7 @@ def per_phase(config: SweepConfig, results: dict) -> list[dict]:
         rows.append(dict(
             phase=float(ph), max_recovered_impulse_ns=best, recovered_up_to_ns=up_to,
             max_recovered_force_n=None if best is None else best / config.push_duration_s,
-            recovery_rate=recovery_rate({k: v[sel] for k, v in results.items() if k in ("fell", "nan")}),
+            recovery_rate=recovery_rate(results, sel),
             nan_rollouts=int(np.sum(results["nan"][sel])),
         ))
     return rows

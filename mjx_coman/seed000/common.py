@@ -14,6 +14,7 @@ from tqdm import tqdm
 
 from mjx_coman import controllers
 from mjx_coman import rollout as ro
+from mjx_coman.actuators import SUPPLY_V
 from mjx_coman.controllers.base import joystick
 
 STEP_TIME_S = 0.4
@@ -37,9 +38,6 @@ def config(name: str = FAMILY, **overrides):
     if ctrl.core() != controllers.get(FAMILY).core():
         raise ValueError(f"{name!r} is not a time-projection variant")
     return cfg
-
-
-SUPPLY_V = 15.0  # the motor drivers' supply (mjx_coman.actuators), V
 
 
 def plant(supply_v: float = SUPPLY_V, friction_scale: float = 1.0):
