@@ -46,14 +46,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    jax.config.update("jax_enable_x64", True)
     from jaxlp.report import format_table, info_report
 
     try:
-        report = info_report(
-            robot=args.robot, step_time_s=args.step_time, speed_mps=args.speed,
-            step_width_m=args.step_width, phases=args.phases, height_m=args.height, mass_kg=args.mass,
-        )
+        with jax.enable_x64(True):  # 64-bit for the report only: a caller in the same process keeps its width
+            report = info_report(
+                robot=args.robot, step_time_s=args.step_time, speed_mps=args.speed,
+                step_width_m=args.step_width, phases=args.phases, height_m=args.height, mass_kg=args.mass,
+            )
     except ValueError as exc:
         return refuse("python -m jaxlp", exc)
     print(strict_json(report, indent=2) if args.json else format_table(report))

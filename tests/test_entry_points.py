@@ -76,14 +76,14 @@ def test_every_runnable_module_is_in_the_table():
 
 
 @pytest.fixture(autouse=True)
-def _keep_jax_float_width():
-    """``python -m jaxlp`` turns on 64-bit floats for its process; in process here, the next tests must not
-    inherit it (float32 scans of the MJX tests fail on float64 carries)."""
+def _jax_float_width_untouched():
+    """No command line's ``main`` may change JAX's float width for the rest of the process (``python -m
+    jaxlp`` once turned 64-bit floats on for good, and the float32 MJX tests after it in the worker failed)."""
     import jax
 
     x64 = jax.config.jax_enable_x64
     yield
-    jax.config.update("jax_enable_x64", x64)
+    assert jax.config.jax_enable_x64 == x64
 
 
 @pytest.mark.parametrize("name,argv,word", CASES, ids=[f"{c[0]}:{' '.join(c[1][:3])}" for c in CASES])
