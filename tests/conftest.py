@@ -7,11 +7,36 @@ family has its own), and the subprocesses that share JAX's
 persistent compilation cache (the walk command line and notebook 03; the studies command line and notebook 06).
 """
 
+import os
+import shutil
+import tempfile
+
 import pytest
 
 from jaxlp.xla_flags import configure_cpu
 
 configure_cpu()
+
+CACHE_ENV = "JAX_COMPILATION_CACHE_DIR"
+
+
+def pytest_configure(config):
+    """One JAX persistent compilation cache for the session, shared by the xdist workers (they inherit the
+    controller's environment) and the subprocesses: a walk compiled by one worker, or by an earlier test with
+    a fresh ``jax.jit`` of the same program, is loaded by the next instead of compiled again. A fresh folder
+    per session (removed at its end) unless the caller set one."""
+    if not hasattr(config, "workerinput") and CACHE_ENV not in os.environ:
+        os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="jax-test-cache-")
+        config._jax_cache_owned = os.environ[CACHE_ENV]
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", os.environ[CACHE_ENV])
+
+
+def pytest_unconfigure(config):
+    owned = getattr(config, "_jax_cache_owned", None)
+    if owned:
+        shutil.rmtree(owned, ignore_errors=True)
 
 SHARED_GROUPS = {
     "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py"),
