@@ -3,7 +3,7 @@
 ``python -m mjx_coman.walk [--controller time-projection] [--set KEY=VALUE ...] --speed 0.1 [--turn-rate 0.3]
 --seconds 10 [--push-ns 4 --push-phase 0.5 --push-dir forward|DEG] [--push-step 5] [--seed 0] [--plot FILE.png] [--json]
 [--payload-kg 1 --payload-body DWYTorso --payload-com-m -0.01,0,0] [--slope-deg 5] [--terrain rough:2|stairs:5|flat]
-[--imu-noise-deg 3] [--joint-noise-deg 1] [--delay-ms 10]``
+[--imu-noise-deg 3] [--joint-noise-deg 1] [--delay-ms 10] [--video FILE.gif|FILE.mp4]``
 
 Runs the controller (:mod:`mjx_coman.controllers`; ``--set`` changes any of
 its settings) in the generic rollout (:func:`mjx_coman.rollout.walk`) for
@@ -16,7 +16,10 @@ controller that steers. The push is a force of
 impulse is ``--push-ns`` N s (``--push-dir``: a name or an angle in degrees,
 counterclockwise from forward, world frame), starting at phase ``--push-phase`` (0 to 1) of
 walking step ``--push-step`` (0 is the controller's first walking step, after
-any start-up). ``--plot`` draws the pelvis path and the footsteps.
+any start-up). ``--plot`` draws the pelvis path and the footsteps;
+``--video`` animates the robot's simulated poses and the push
+(:mod:`mjx_coman.render`: MuJoCo's renderer where OpenGL is configured,
+matplotlib otherwise).
 
 The scenario options (:mod:`mjx_coman.scenarios`: seed 001's payload,
 slope, rough ground, sensor noise and delay; stairs) change the robot and
@@ -64,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--privileged", action="store_true", help="allow a controller that reads ground truth")
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the sensor noise")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="draw pelvis and footstep trajectories")
+    p.add_argument("--video", default=None, metavar="FILE.gif",
+                   help="animate the walk (.gif; .mp4 where ffmpeg is present) with the push as an arrow")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     g = p.add_argument_group("scenario (mjx_coman.scenarios; the controller is not told)")
     g.add_argument("--payload-kg", type=float, default=0.0, help="mass added to --payload-body, kg (seed 001: 1)")
@@ -141,6 +146,11 @@ def validate(args: argparse.Namespace) -> None:
     if not 0 <= args.seed < 2**32:
         raise ValueError(f"--seed must lie in [0, 2**32), got {args.seed}")
     check_output_file("--plot", args.plot, PLOT_SUFFIXES)
+    if args.video is not None:
+        from mjx_coman import render
+
+        render.check_path(args.video)
+        check_output_file("--video", args.video, render.SUFFIXES)
     if ctrl.privileged and not args.privileged:
         raise ValueError(f"--controller {name} reads the simulator's ground truth; add --privileged to run it")
     with contextlib.redirect_stdout(sys.stderr):
@@ -214,7 +224,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     else:
         start = None
         push = ro.no_push()
-    save = ro.SaveAt(ro.pelvis_com_and_torque, every=10)
+    save = ro.SaveAt(record, every=10)
     joystick = controllers.joystick(args.speed, turn_rad_per_s=args.turn_rate)
     t0 = time.perf_counter()
     fn = ro.jit_walk(ctrl, ro.WalkSpec(seconds=args.seconds, judge=judge), save, privileged_ok=args.privileged)
@@ -251,6 +261,29 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "wall_s": round(wall, 2),
     }
     return summary, res
+
+
+def record(state) -> dict:
+    """What a walk saves every 10 ticks: :func:`mjx_coman.rollout.pelvis_com_and_torque` and the simulated
+    ``qpos`` (the poses ``--video`` draws; always recorded, so the video does not change the compiled walk)."""
+    from mjx_coman import rollout as ro
+
+    return dict(ro.pelvis_com_and_torque(state), qpos=state.env.data.qpos)
+
+
+def video(res, args, path: str, title: str) -> dict:
+    """Animate the walk's recorded poses in the scene it ran in, with its push (:mod:`mjx_coman.render`)."""
+    import numpy as np
+
+    from mjx_coman import render
+    from mjx_coman.scenarios import scene_model
+
+    push = None
+    if args.push_ns > 0:
+        push = render.PushDrawing(push_start_s(args.gait, args.push_step, args.push_phase), args.push_duration,
+                                  push_force_n(args.push_ns, args.push_duration, args.push_dir))
+    return render.write_video(path, scene_model(args.scenario.terrain), np.asarray(res.time_s),
+                              np.asarray(res.saved["qpos"]), push, title)
 
 
 def stance_metrics(res, plant: str) -> dict:
@@ -318,12 +351,14 @@ def main(argv: list[str] | None = None) -> int:
         summary, res = run(args)
     except KeyboardInterrupt:
         return interrupted("python -m mjx_coman.walk")
+    push = summary["push"]
+    extra = f", push {push['impulse_ns']:g} N s {push['direction']}" if push else ""
+    title = f"{args.controller_name}, {args.speed:g} m/s{extra}"
     if args.plot:
-        push = summary["push"]
-        extra = f", push {push['impulse_ns']:g} N s {push['direction']}" if push else ""
-        plot(res, args.plot, f"{args.controller_name}, {args.speed:g} m/s{extra}: "
-                             f"{'fell' if summary['fell'] else 'walked'}, {summary['touchdowns']} touchdowns")
+        plot(res, args.plot, f"{title}: {'fell' if summary['fell'] else 'walked'}, {summary['touchdowns']} touchdowns")
         summary["plot"] = str(args.plot)
+    if args.video:
+        summary["video"] = video(res, args, args.video, title)
     if args.json:
         print(strict_json(summary, indent=2))
     else:

@@ -81,6 +81,8 @@ def no_build(monkeypatch):
         (["--plot", "out.txt"], "--plot"),
         (["--plot", "/no/such/dir/out.png"], "--plot"),
         (["--plot", "/proc/out.png"], "/proc/out.png"),  # mode bits let root write there: tried, not read
+        (["--video", "walk.avi"], "walk.avi"),
+        (["--video", "/no/such/dir/walk.gif"], "--video"),
         (["--bogus"], "--bogus"),
     ],
 )
@@ -120,11 +122,12 @@ def test_push_direction_in_degrees_matches_the_names():
 @pytest.fixture(scope="module")
 def short_walk(tmp_path_factory):
     png = tmp_path_factory.mktemp("walk") / "walk.png"
+    gif = png.with_suffix(".gif")
     # JAX's persistent compilation cache, shared with the notebook 03 test (the same compiled walk)
     env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(tmp_path_factory.getbasetemp() / "jax_compile_cache"))
     out = _run("--speed", "0.0", "--seconds", SECONDS, "--controller", "closed-loop", "--set", "hip_attack=0.7",
                "--push-ns", "3", "--push-step", "1", "--push-phase", "0.35", "--push-dir", "backward",
-               "--plot", str(png), "--json", env=env)
+               "--plot", str(png), "--video", str(gif), "--json", env=env)
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout), png
 
@@ -144,3 +147,24 @@ def test_short_walk_reports_ground_truth_and_stays_up(short_walk):
     assert s2r is None or 1 <= s2r <= report["touchdowns"]  # ground truth: touchdowns after the push ends
     assert report["max_abs_footstep_adjustment_m"] > 0.0
     assert png.stat().st_size > 10_000
+
+
+def test_video_shows_the_robot_every_frame_and_the_push_while_it_acts(short_walk):
+    """Drawn without OpenGL (matplotlib): the red push arrow in the frames inside the push only."""
+    import numpy as np
+    from PIL import Image, ImageSequence
+
+    report, png = short_walk
+    video = report["video"]
+    assert video["backend"] == "matplotlib" and video["fps"] == 25.0
+    with Image.open(video["path"]) as im:
+        frames = [np.asarray(f.convert("RGB")).astype(int) for f in ImageSequence.Iterator(im)]
+    assert len(frames) == video["frames"] and abs(len(frames) - 25 * float(SECONDS)) <= 2
+    red = np.array([np.sum((f[..., 0] > 200) & (f[..., 1] < 60) & (f[..., 2] < 60)) for f in frames])
+    t = np.arange(len(frames)) / 25.0
+    start, dur = report["push"]["start_s"], report["push"]["duration_s"]
+    inside = (t >= start + 0.02) & (t < start + dur - 0.02)  # a record's time is within 20 ms of the frame's
+    outside = (t < start - 0.02) | (t >= start + dur + 0.02)
+    assert inside.sum() >= 1 and np.all(red[inside] > 50) and np.all(red[outside] == 0), red
+    robot = np.array([np.sum((f[..., 2] > 150) & (f[..., 0] < 100)) for f in frames])  # the blue left leg
+    assert np.all(robot > 200)
