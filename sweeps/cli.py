@@ -3,7 +3,8 @@
     coman-sweep map                       # the built-in default: full 3LP map (+ small MJX map)
     coman-sweep map --preset gpu          # thousands of MJX rollouts
     coman-sweep map [--model 3lp|mjx] [--controller time-projection] [--set KEY=VALUE ...] [--phases 16]
-                    [--impulses 0:20:41] [--direction forward] [--noise X] [--bias X] [--randomize PCT]
+                    [--impulses 0:20:41] [--direction forward|45] [--directions 8|forward,left] [--noise X]
+                    [--bias X] [--randomize PCT]
                     [--constants tuned.json] [--seed 0] [--chunk 256] [--out sweep-map] [--resume] [--force]
     coman-sweep compare [--controllers time-projection,dlqr,open-loop] [same grid options] [--out sweep-compare]
     coman-sweep controllers [--json]      # every controller of each model, with its settings
@@ -12,7 +13,9 @@
 and impulse and writes results.npz, results.csv, basin.png and summary.json
 to ``--out``. With no grid option (or with ``--preset``) it runs a preset,
 one subfolder per run. ``compare`` runs the same grid for several controllers
-(one subfolder each) and adds compare.png and compare.json.
+(one subfolder each) and adds compare.png and compare.json; on ``--model mjx``
+its grid defaults to 8 push directions x 2 phases x 3 impulses (48 walks per
+controller, :data:`sweeps.presets.COMPARE_DEFAULTS`).
 Several hosts: ``--distributed`` (or ``--coordinator``) starts
 ``jax.distributed`` first; see the README. A bad argument exits with
 status 2 and one line on stderr.
@@ -29,8 +32,9 @@ from typing import Callable, NamedTuple
 
 from jaxlp.cliutil import Parser, check_output_dir, interrupted
 from sweeps import scenario_args
-from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
-from sweeps.presets import PRESETS
+from sweeps.grid import (DIRECTIONS_RAD, GridError, SweepConfig, direction_rad, parse_directions, parse_impulses,
+                         parse_phases)
+from sweeps.presets import COMPARE_DEFAULTS, PRESETS
 
 
 class Command(NamedTuple):
@@ -70,6 +74,15 @@ def _arg(parse):
     return conv
 
 
+def _one_direction(text: str) -> str:
+    """A name or degrees (``"45"``: a heading, not a count as in ``--directions``)."""
+    if "," in text:
+        raise GridError(f"--direction takes one direction, got {text!r} (use --directions for several)")
+    text = text.strip()
+    direction_rad(text)  # GridError naming it
+    return text if text in DIRECTIONS_RAD else f"{float(text):g}"
+
+
 def _controllers(text: str) -> tuple[str, ...]:
     vals = tuple(v.strip() for v in text.split(",") if v.strip())
     if not vals:
@@ -98,6 +111,7 @@ _MODEL_FIELDS = {
     "randomize_delay": {"mjx": "randomize_delay_ticks"},
 }
 _FIELDS = dict(model="model", robot="robot", phases="phases", impulses="impulses_ns", direction="direction",
+               directions="directions",
                push_step="push_step", push_duration="push_duration_s", speed="speed_mps",
                step_time="step_time_s", n_steps="n_steps", randomize="randomize_mass_pct", seed="seed",
                chunk="chunk")
@@ -110,7 +124,11 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
     a("--phases", type=_arg(parse_phases),
       help="push start in the step: a count N (N phases in [0, 1)) or a list 0,0.25 (default 16)")
     a("--impulses", type=_arg(parse_impulses), help="impulses in N s: start:stop:num or a list (default 0:20:41)")
-    a("--direction", choices=tuple(DIRECTIONS_RAD), help="push direction (default forward)")
+    a("--direction", type=_arg(_one_direction),
+      help=f"push direction: {', '.join(DIRECTIONS_RAD)} or degrees from forward, + left (default forward)")
+    a("--directions", type=_arg(parse_directions),
+      help="several push directions, each a whole grid: a count N (N headings from forward) or a list "
+           "forward,45,left (compare --model mjx: 8)")
     a("--push-step", type=_number("--push-step", int, 0), help="step during which the push starts (default 2; mjx: walking step, after its start-up phase)")
     a("--push-duration", type=_number("--push-duration", float, 0, True), help="push duration, s (default 0.1)")
     a("--speed", type=float, help="walking speed, m/s (default 0: in place)")
@@ -259,6 +277,11 @@ def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:
     model = args.model or "3lp"
     m = get_model(model)  # GridError listing the models
     base = dict(_overrides(args, model, strict=True), model=model)
+    if args.command == "compare":
+        defaults = dict(COMPARE_DEFAULTS.get(model, {}))
+        if "direction" in base:  # one direction asked: not the default directions
+            defaults.pop("directions", None)
+        base = dict(defaults, **base)
     runs = scenario_args.variants(args)  # one per terrain: a scene (and a compilation) each
     if args.command == "map":
         return [(out / sub, _config(dict(base, scenario=sc), args, args.controller or "time-projection"), False, "")

@@ -1,8 +1,11 @@
-"""Sweep configuration and the push grid (phase x impulse, one direction, optionally x scenarios).
+"""Sweep configuration and the push grid (phase x impulse, one direction or several, optionally x scenarios).
 
 A sweep is a frozen :class:`SweepConfig` (plain Python values, hashable, so it
 keys the jit cache and the results directory) and the rollouts it implies:
-row ``i = phase_index * n_impulses + impulse_index``. With scenario axes
+row ``i = phase_index * n_impulses + impulse_index``. With several push
+directions (``SweepConfig.directions``) that grid repeats per direction,
+direction-major: rows ``d * block .. (d + 1) * block`` are direction ``d``'s
+(``block`` the rows of one direction). With scenario axes
 (``SweepConfig.scenario``: payload, slope, noise, delay, terrain of
 :mod:`mjx_coman.scenarios`) every cell of that grid runs once per scenario,
 scenario-minor: row ``i = cell * n_scenarios + scenario_index`` (so rows
@@ -37,6 +40,53 @@ RESULT_BYTES = 160  # per rollout in results.npz and in memory (about 16 columns
 
 class GridError(ValueError):
     """A bad sweep configuration (the command line turns it into exit status 2)."""
+
+
+def direction_rad(name: str) -> float:
+    """The heading of a push direction: a name of :data:`DIRECTIONS_RAD` or degrees counterclockwise from
+    forward (``"45"``).
+
+    Raises:
+        GridError: neither a name nor a finite number.
+    """
+    if name in DIRECTIONS_RAD:
+        return DIRECTIONS_RAD[name]
+    try:
+        deg = float(name)
+    except (TypeError, ValueError):
+        deg = math.nan
+    if not math.isfinite(deg):
+        raise GridError(f"unknown direction {name!r}; choose one of {', '.join(DIRECTIONS_RAD)} or an angle in degrees")
+    return math.radians(deg)
+
+
+def parse_directions(text: str) -> tuple[str, ...]:
+    """``"8"``: 8 headings 45 degrees apart from forward; ``"forward,45,left"``: those (names or degrees).
+
+    Raises:
+        GridError: an empty list, a bad direction, or one heading twice.
+    """
+    text = str(text).strip()
+    if text.isdigit():
+        n = int(text)
+        if not 1 <= n <= 360:
+            raise GridError(f"--directions must be a count in [1, 360] or a list, got {text!r}")
+        return tuple(f"{360.0 * k / n:g}" for k in range(n))
+    vals = tuple(v.strip() for v in text.split(",") if v.strip())
+    if not vals:
+        raise GridError(f"--directions gives no direction: {text!r}")
+    vals = tuple(v if v in DIRECTIONS_RAD else f"{float(v):g}" if _is_number(v) else v for v in vals)
+    heads = [round(math.degrees(direction_rad(v))) % 360 for v in vals]
+    if len(set(heads)) != len(heads):
+        raise GridError(f"--directions names a heading twice: {text!r}")
+    return vals
+
+
+def _is_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
 
 
 def parse_phases(text: str) -> tuple[float, ...]:
@@ -111,7 +161,9 @@ class SweepConfig:
         robot: 3LP parameter preset (:func:`jaxlp.presets.get_params`).
         phases: push start times as fractions of the step, in [0, 1).
         impulses_ns: push impulses, N s (force = impulse / duration).
-        direction: ``forward``, ``backward``, ``left`` or ``right``.
+        direction: ``forward``, ``backward``, ``left``, ``right`` or degrees from forward (``"45"``).
+        directions: several push directions, each a whole grid (direction-major rows); ``()``: ``direction``
+            alone.
         push_step: index of the step during which the push starts.
         push_duration_s: push duration, s.
         speed_mps: commanded walking speed (0: in place).
@@ -144,6 +196,7 @@ class SweepConfig:
     phases: tuple[float, ...] = tuple(k / 16 for k in range(16))
     impulses_ns: tuple[float, ...] = tuple(float(v) for v in np.linspace(0.0, 20.0, 41))
     direction: str = "forward"
+    directions: tuple[str, ...] = ()
     push_step: int = 2
     push_duration_s: float = 0.1
     speed_mps: float = 0.0
@@ -174,8 +227,10 @@ class SweepConfig:
             raise GridError(f"controller_overrides must be ((setting, value), ...), got {self.controller_overrides!r}")
         if list(self.controller_overrides) != sorted(self.controller_overrides, key=lambda kv: kv[0]):
             raise GridError("controller_overrides must be sorted by setting (use with_overrides)")
-        if self.direction not in DIRECTIONS_RAD:
-            raise GridError(f"unknown direction {self.direction!r}; choose one of {', '.join(DIRECTIONS_RAD)}")
+        for d in (self.direction, *self.directions):
+            direction_rad(d)
+        if not isinstance(self.directions, tuple):
+            raise GridError(f"directions must be a tuple, got {self.directions!r}")
         if not self.phases or not self.impulses_ns:
             raise GridError("the grid is empty (no phases or no impulses)")
         if any(v < 0 or not math.isfinite(v) for v in self.impulses_ns):
@@ -287,16 +342,31 @@ class SweepConfig:
         return self.noise_std_m > 0 or self.bias_m != 0
 
     @property
-    def n_rollouts(self) -> int:
+    def direction_list(self) -> tuple[str, ...]:
+        """The push directions, in row order."""
+        return self.directions or (self.direction,)
+
+    @property
+    def n_per_direction(self) -> int:
+        """Rows of one direction (phases x impulses x scenarios)."""
         return len(self.phases) * len(self.impulses_ns) * self.n_scenarios
 
+    @property
+    def n_rollouts(self) -> int:
+        return self.n_per_direction * len(self.direction_list)
+
+    def for_direction(self, d: int) -> "SweepConfig":
+        """The single-direction configuration of direction ``d`` (for reports on its rows)."""
+        return dataclasses.replace(self, direction=self.direction_list[d], directions=())
+
     def compiled_part(self) -> "SweepConfig":
-        """The configuration without what reaches the rollouts as inputs (seed, grid, chunk).
+        """The configuration without what reaches the rollouts as inputs (seed, grid, directions, chunk).
 
         Models see only this, so sweeps that differ in seed or grid share compiled code. The scenario
         axes stay (a rollout finds its scenario from its index: ``index % n_scenarios``).
         """
-        return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1)
+        return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1, direction="forward",
+                                   directions=())
 
     def to_dict(self) -> dict:
         """Every field as JSON values (the overrides as a dict) and the results version."""
@@ -307,6 +377,10 @@ class SweepConfig:
             d["scenario"] = {a: list(v) for a, v in self.scenario}
         else:
             del d["scenario"]  # absent, so that sweeps without scenarios keep their hashes
+        if self.directions:
+            d["directions"] = list(self.directions)
+        else:
+            del d["directions"]  # likewise
         d["results_version"] = RESULTS_VERSION
         return d
 
@@ -317,6 +391,7 @@ class SweepConfig:
         d["phases"], d["impulses_ns"] = tuple(d["phases"]), tuple(d["impulses_ns"])
         d["controller_overrides"] = freeze_overrides(d.get("controller_overrides") or {})
         d["scenario"] = freeze_scenario(d.get("scenario") or {})
+        d["directions"] = tuple(d.get("directions") or ())
         return cls(**d)
 
     def hash(self) -> str:
@@ -362,16 +437,17 @@ class GridInputs(NamedTuple):
 
 
 def grid_inputs(config: SweepConfig) -> GridInputs:
-    """All rollouts of a sweep, phase-major, scenario-minor."""
+    """All rollouts of a sweep: direction-major, then phase, impulse, scenario-minor."""
     ph, imp = np.meshgrid(np.asarray(config.phases, float), np.asarray(config.impulses_ns, float), indexing="ij")
     k = config.n_scenarios
-    n = ph.size * k
+    dirs = config.direction_list
+    n = config.n_rollouts
     index = np.arange(n, dtype=np.int32)
     return GridInputs(
         index=index,
-        phase=np.repeat(ph.ravel(), k),
-        impulse_ns=np.repeat(imp.ravel(), k),
-        direction_rad=np.full(n, DIRECTIONS_RAD[config.direction]),
+        phase=np.tile(np.repeat(ph.ravel(), k), len(dirs)),
+        impulse_ns=np.tile(np.repeat(imp.ravel(), k), len(dirs)),
+        direction_rad=np.repeat([direction_rad(d) for d in dirs], config.n_per_direction),
         scenario_index=index % k,
     )
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from sweeps.grid import parse_impulses, parse_phases
+from sweeps.grid import parse_directions, parse_impulses, parse_phases
 
 
 class PresetRun(NamedTuple):
@@ -57,4 +57,11 @@ PRESETS: dict[str, tuple[PresetRun, ...]] = {
     "gpu": (
         PresetRun("mjx", _MJX_GPU, note="MJX COMAN, time projection, 4,096 randomised rollouts in one chunk"),
     ),
+}
+
+# What ``coman-sweep compare --model mjx`` runs for each controller unless an option says otherwise: 8 push
+# directions x 2 phases x 3 impulses = 48 walks of 2.8 s (start-up phase + 6 steps), in one chunk.
+COMPARE_DEFAULTS: dict[str, dict] = {
+    "mjx": dict(directions=parse_directions("8"), phases=(0.25, 0.75), impulses_ns=(2.0, 4.0, 6.0), n_steps=6,
+                push_step=1, chunk=48),
 }

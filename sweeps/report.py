@@ -11,6 +11,12 @@ scenario (``scenario_index`` and a column per axis); its summary's
 top-level statistics pool every scenario, and ``per_scenario`` gives each
 one's own (per phase, the limit-cycle comparison against its own unpushed
 walks); basin.png draws one map per scenario.
+
+A sweep of several push directions (``SweepConfig.directions``) reports
+each direction's rows as a sweep of its own (``per_direction``); its
+top-level ``per_phase`` counts an impulse as recovered at a phase only where
+every direction (and scenario) recovered it; basin.png draws one map per
+direction and scenario.
 """
 
 from __future__ import annotations
@@ -21,13 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.grid import SCENARIO_AXES, SweepConfig
+from sweeps.grid import SCENARIO_AXES, SweepConfig, direction_rad
 from jaxlp.files import save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
 from sweeps.runner import SweepRun
 
 CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
                "max_abs_footstep_adjustment_m", "fall_time_s", "reason")
 _BASE = set(CSV_COLUMNS) | {"nan"}
+MAX_COLUMNS = 4  # basin maps per row of a figure
 _SCENARIO = ("scenario_index", *SCENARIO_AXES)
 
 
@@ -45,6 +52,19 @@ def scenario_rows(config: SweepConfig, results: dict, s: int) -> dict:
     """The results of scenario ``s`` alone (rows ``s::n_scenarios``: that scenario's grid, phase-major)."""
     k = config.n_scenarios
     return {name: np.asarray(v)[s::k] for name, v in results.items()}
+
+
+def direction_rows(config: SweepConfig, results: dict, d: int) -> dict:
+    """The results of push direction ``d`` alone (its block of ``config.n_per_direction`` rows)."""
+    b = config.n_per_direction
+    return {name: np.asarray(v)[d * b:(d + 1) * b] for name, v in results.items()}
+
+
+def blocks(config: SweepConfig, results: dict) -> list[tuple[SweepConfig, dict]]:
+    """``(single-direction config, its rows)`` per push direction (one pair without several directions)."""
+    if not config.directions:
+        return [(config, results)]
+    return [(config.for_direction(d), direction_rows(config, results, d)) for d in range(len(config.directions))]
 
 
 def recovered(results: dict) -> np.ndarray:
@@ -116,23 +136,41 @@ def _scenario_summary(cfg: SweepConfig, res: dict) -> list[dict]:
     return out
 
 
+def _direction_summary(cfg: SweepConfig, res: dict) -> dict:
+    """One direction's statistics (``cfg`` a single-direction config, ``res`` its rows)."""
+    ok = recovered(res)
+    s2r = _steps_to_recover(res, ok)
+    return dict(direction=cfg.direction, direction_deg=float(np.degrees(direction_rad(cfg.direction))),
+                recovery_rate=recovery_rate(res), fell=int(np.sum(res["reason"] == "fell")),
+                nan=int(np.sum(res["reason"] == "nan")),
+                median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
+                per_phase=phase_rows(cfg, res),
+                **({} if not cfg.scenario else dict(per_scenario=_scenario_summary(cfg, res))))
+
+
+def _steps_to_recover(res: dict, ok: np.ndarray) -> np.ndarray:
+    """Steps to recover of the recovered pushed rollouts that settled."""
+    s2r = np.asarray(res["steps_to_recover"])[ok & (np.asarray(res["impulse_ns"]) > 0)]
+    return s2r[s2r >= 0]
+
+
 def summarize(run: SweepRun) -> dict:
     """The summary.json content of a sweep."""
     cfg, res = run.config, run.results
     ok = recovered(res)
-    scen = _scenario_summary(cfg, res) if cfg.scenario else None
+    scen = _scenario_summary(cfg, res) if cfg.scenario and not cfg.directions else None
     cycle = _cycle_stats(res, ok)
     if scen is not None and cycle:  # each scenario against its own unpushed walks
         diffs = [r["max_cycle_difference_mps"] for r in scen if r.get("max_cycle_difference_mps") is not None]
         cycle = dict(unpushed_cycle_mps=None, max_cycle_difference_mps=max(diffs) if diffs else None)
     per_phase_rows = phase_rows(cfg, res)
     t = run.timing
-    pushed = res["impulse_ns"] > 0
-    s2r = res["steps_to_recover"][ok & pushed]
-    s2r = s2r[s2r >= 0]
+    s2r = _steps_to_recover(res, ok)
+    several = len(cfg.direction_list) > 1
     return dict(
         model=cfg.model, controller=cfg.controller, controller_overrides=cfg.to_dict()["controller_overrides"],
-        direction=cfg.direction, push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
+        direction=", ".join(cfg.direction_list), directions=list(cfg.direction_list),
+        push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
         rollouts=int(cfg.n_rollouts), recovery_rate=recovery_rate(res),
         fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
         median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
@@ -140,6 +178,7 @@ def summarize(run: SweepRun) -> dict:
         **cycle,
         per_phase=per_phase_rows,
         **({} if scen is None else dict(per_scenario=scen)),
+        **({} if not several else dict(per_direction=[_direction_summary(c, r) for c, r in blocks(cfg, res)])),
         wall_s=t["wall_s"], first_chunk_s=t["first_chunk_s"], run_s=t["run_s"],
         rollouts_per_s=t["rollouts_per_s"], env_steps_per_s=t["env_steps_per_s"],
         rate_includes_compile=t["rate_includes_compile"], env_steps_per_rollout=t["ticks_per_rollout"],
@@ -153,15 +192,15 @@ def summarize(run: SweepRun) -> dict:
 
 
 def phase_rows(cfg: SweepConfig, res: dict) -> list[dict]:
-    """:func:`per_phase`, over every scenario of a sweep with scenario axes: an impulse counts as recovered
-    at a phase only where every scenario recovered it."""
-    if not cfg.scenario:
+    """:func:`per_phase`, over every direction and scenario of the sweep: an impulse counts as recovered at a
+    phase only where every direction and every scenario recovered it."""
+    if not cfg.scenario and not cfg.directions:
         return per_phase(cfg, res)
-    subs = [scenario_rows(cfg, res, s) for s in range(cfg.n_scenarios)]
+    subs = [scenario_rows(c, r, s) for c, r in blocks(cfg, res) for s in range(cfg.n_scenarios)]
     ok = np.all([recovered(sub) for sub in subs], axis=0)
     nan = np.any([sub["nan"] for sub in subs], axis=0)
     first = dict(subs[0], fell=~ok & ~nan, nan=nan)
-    return per_phase(cfg, first)
+    return per_phase(cfg.for_direction(0), first)
 
 
 def results_csv(config: SweepConfig, results: dict) -> str:
@@ -241,16 +280,22 @@ def save_basin_png(path: Path, runs: list[SweepRun]) -> None:
 
     panels = []
     for run in runs:
-        if not run.config.scenario:
-            panels.append((run.config, run.results, None))
-            continue
-        for s, values in enumerate(run.config.scenarios()):
-            label = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
-            panels.append((run.config, scenario_rows(run.config, run.results, s),
-                           f"{run.config.controller}: {label}"))
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.8 * len(panels), 4.8), squeeze=False, sharey=True)
-    for ax, (cfg, res, title) in zip(axes[0], panels):
+        for cfg, res in blocks(run.config, run.results):
+            where = f"{cfg.direction} pushes" if run.config.directions else ""
+            if not cfg.scenario:
+                panels.append((cfg, res, f"{cfg.model} / {cfg.controller}: {where}" if where else None))
+                continue
+            for s, values in enumerate(cfg.scenarios()):
+                label = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
+                panels.append((cfg, scenario_rows(cfg, res, s),
+                               f"{cfg.controller}: {label}" + (f", {where}" if where else "")))
+    ncol = min(len(panels), MAX_COLUMNS)
+    nrow = -(-len(panels) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.8 * ncol, 4.8 * nrow), squeeze=False, sharey=True)
+    for ax, (cfg, res, title) in zip(axes.ravel(), panels):
         plot_basin(ax, cfg, res, title)
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_visible(False)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     _legend(fig)
     buf = io.BytesIO()

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, grid_inputs, parse_impulses, parse_phases
+from sweeps.grid import (DIRECTIONS_RAD, GridError, SweepConfig, direction_rad, grid_inputs, parse_directions,
+                         parse_impulses, parse_phases)
 from sweeps.models import check
 
 
@@ -25,6 +26,8 @@ def test_parse_impulses(text, expected):
     (parse_phases, "0", "count >= 1"), (parse_phases, "", "empty|count"), (parse_phases, "0.2,1.0", r"\[0, 1\)"),
     (parse_impulses, "0:10:0", "empty grid"), (parse_impulses, "-1,2", "non-negative"),
     (parse_impulses, "1,inf", "finite"), (parse_impulses, "1:2", "start:stop:num"), (parse_impulses, "a", "N s"),
+    (parse_directions, "0", r"\[1, 360\]"), (parse_directions, ",", "no direction"), (parse_directions, "up", "'up'"),
+    (parse_directions, "forward,360", "heading twice"), (parse_directions, "left,nan", "'nan'"),
 ])
 def test_bad_grids_name_the_problem(parse, text, match):
     with pytest.raises(GridError, match=match):
@@ -52,6 +55,31 @@ def test_bad_grids_name_the_problem(parse, text, match):
 def test_validate_names_the_bad_value(fields, match):
     with pytest.raises(GridError, match=match):
         check(SweepConfig(**fields))
+
+
+def test_directions_are_names_or_degrees_from_forward():
+    assert parse_directions("8") == ("0", "45", "90", "135", "180", "225", "270", "315")
+    assert parse_directions("forward, 45.0,left") == ("forward", "45", "left")
+    assert direction_rad("90") == pytest.approx(DIRECTIONS_RAD["left"])
+    assert direction_rad("-90") == pytest.approx(DIRECTIONS_RAD["right"])
+
+
+def test_several_directions_repeat_the_grid_direction_major_and_keep_old_hashes():
+    one = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0), direction="left")
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0),
+                      directions=("forward", "90", "backward")).validate()
+    assert cfg.n_per_direction == 6 and cfg.n_rollouts == 18
+    g, g1 = grid_inputs(cfg), grid_inputs(one)
+    for d, heading in enumerate((0.0, math.pi / 2, math.pi)):  # rows 6d..6d+5 are direction d's whole grid
+        np.testing.assert_array_equal(g.phase[6 * d:6 * d + 6], g1.phase)
+        np.testing.assert_array_equal(g.impulse_ns[6 * d:6 * d + 6], g1.impulse_ns)
+        np.testing.assert_allclose(g.direction_rad[6 * d:6 * d + 6], heading)
+    np.testing.assert_array_equal(grid_inputs(cfg.for_direction(1)).direction_rad, g1.direction_rad)
+    assert "directions" not in one.to_dict()  # sweeps of one direction keep their hashes
+    assert SweepConfig.from_dict(cfg.to_dict()) == cfg and cfg.hash() != one.hash()
+    assert cfg.compiled_part() == one.compiled_part()  # headings are inputs: one compilation for all
+    with pytest.raises(GridError, match="unknown direction 'up'"):
+        SweepConfig(directions=("forward", "up")).validate()
 
 
 def test_grid_is_phase_major_and_the_hash_is_the_identity():

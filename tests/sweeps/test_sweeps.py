@@ -74,6 +74,9 @@ def _results(out: Path) -> dict:
     (["map", "--model", "mjx", "--imu-noise-deg", "1,3"], "one value"),
     (["map", "--model", "3lp", "--payload-kg", "1"], "--model mjx only"),
     (["map", "--preset", "default", "--payload-kg", "1"], "--preset"),
+    (["map", "--model", "mjx", "--direction", "up"], "'up'"),
+    (["map", "--model", "mjx", "--direction", "forward,left"], "--directions"),
+    (["compare", "--model", "mjx", "--directions", "forward,0"], "heading twice"),
 ])
 def test_bad_arguments_exit_2_with_one_line(args, names, tmp_path, capsys):
     from sweeps.cli import main
@@ -278,8 +281,14 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
                                                                          ("mjx", "mjx", 10, 20)]),
     # a grid option without --preset: one map into --out with the base defaults
     (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
-    (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],
-     [(c, "mjx", 4, 256) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc")]),
+    (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],  # 8 directions by default
+     [(c, "mjx", 8 * 4, 48) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc")]),
+    (["compare", "--model", "mjx", "--controllers", "dlqr"], [("dlqr", "mjx", 8 * 2 * 3, 48)]),
+    (["compare", "--model", "mjx", "--controllers", "dlqr", "--direction", "45", "--chunk", "8"],
+     [("dlqr", "mjx", 2 * 3, 8)]),
+    (["compare", "--model", "mjx", "--controllers", "dlqr", "--directions", "left,right", "--impulses", "1"],
+     [("dlqr", "mjx", 2 * 2, 48)]),
+    (["map", "--model", "mjx", "--directions", "4", "--phases", "2"], [("", "mjx", 4 * 2 * 41, 256)]),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
      [("", "mjx", 2 * 41, 256)]),
     # scenario axes: batched ones multiply the grid; each terrain is its own run (a scene)
@@ -287,7 +296,7 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
      [("", "mjx", 2 * 41 * 6, 256)]),
     (["compare", "--model", "mjx", "--controllers", "time-projection,dlqr", "--phases", "2", "--impulses", "0,1",
       "--axis", "terrain=flat,rough:2", "--delay-ms", "10"],
-     [(f"terrain-{t}/{c}", "mjx", 4, 256) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
+     [(f"terrain-{t}/{c}", "mjx", 8 * 4, 48) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
 ])
 def test_presets_and_overrides(argv, expected, tmp_path):
     from sweeps.cli import build_parser, plan_runs
