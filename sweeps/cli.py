@@ -13,7 +13,8 @@
 and impulse and writes results.npz, results.csv, basin.png and summary.json
 to ``--out``. With no grid option (or with ``--preset``) it runs a preset,
 one subfolder per run. ``compare`` runs the same grid for several controllers
-(one subfolder each) and adds compare.png and compare.json; on ``--model mjx``
+(one subfolder each) and adds compare.png and compare.json (per terrain) and
+scorecard.json and scorecard.md (:mod:`sweeps.scorecard`); on ``--model mjx``
 its grid defaults to 8 push directions x 2 phases x 3 impulses (48 walks per
 controller, :data:`sweeps.presets.COMPARE_DEFAULTS`).
 Several hosts: ``--distributed`` (or ``--coordinator``) starts
@@ -111,7 +112,7 @@ _MODEL_FIELDS = {
     "randomize_delay": {"mjx": "randomize_delay_ticks"},
 }
 _FIELDS = dict(model="model", robot="robot", phases="phases", impulses="impulses_ns", direction="direction",
-               directions="directions",
+               directions="directions", repeats="repeats",
                push_step="push_step", push_duration="push_duration_s", speed="speed_mps",
                step_time="step_time_s", n_steps="n_steps", randomize="randomize_mass_pct", seed="seed",
                chunk="chunk")
@@ -129,6 +130,9 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
     a("--directions", type=_arg(parse_directions),
       help="several push directions, each a whole grid: a count N (N headings from forward) or a list "
            "forward,45,left (compare --model mjx: 8)")
+    a("--repeats", type=_number("--repeats", int, 1),
+      help="runs of the whole grid, each push with its own draw of sensor noise and robot (default 1; the "
+           "scorecard's bootstrap intervals need 2 or more)")
     a("--push-step", type=_number("--push-step", int, 0), help="step during which the push starts (default 2; mjx: walking step, after its start-up phase)")
     a("--push-duration", type=_number("--push-duration", float, 0, True), help="push duration, s (default 0.1)")
     a("--speed", type=float, help="walking speed, m/s (default 0: in place)")
@@ -426,12 +430,19 @@ def _sweep(args, parser) -> int:
     except (SweepConflict, GridError) as e:
         parser.error(str(e))
     if args.command == "compare" and main_process:
+        from sweeps import scorecard
+
         for out, idx in scenario_args.compare_groups([(o, c) for o, c, _ in runnable]).items():
             table = report.compare_table([runs[i] for i in idx])
-            report.save_basin_png(out / "compare.png", [runs[i] for i in idx])
+            report.save_basin_png(out / "compare.png", [runs[i] for i in idx], row_per_run=True)
             save_text_atomic(out / "compare.json", strict_json(table))
             print(report.format_compare_table(table))
             print(f"wrote {out}/compare.png, compare.json")
+        card = scorecard.scorecard(runs)
+        save_text_atomic(args.out / "scorecard.json", strict_json(card))
+        save_text_atomic(args.out / "scorecard.md", scorecard.markdown(card))
+        print(scorecard.markdown(card), end="")
+        print(f"wrote {args.out}/scorecard.json, scorecard.md")
     return 0
 
 

@@ -5,7 +5,9 @@ keys the jit cache and the results directory) and the rollouts it implies:
 row ``i = phase_index * n_impulses + impulse_index``. With several push
 directions (``SweepConfig.directions``) that grid repeats per direction,
 direction-major: rows ``d * block .. (d + 1) * block`` are direction ``d``'s
-(``block`` the rows of one direction). With scenario axes
+(``block`` the rows of one direction). With ``repeats`` K > 1 the whole
+grid (every direction) runs K times, repeat-major, each rollout with its
+own randomness (sensor noise, randomised robot). With scenario axes
 (``SweepConfig.scenario``: payload, slope, noise, delay, terrain of
 :mod:`mjx_coman.scenarios`) every cell of that grid runs once per scenario,
 scenario-minor: row ``i = cell * n_scenarios + scenario_index`` (so rows
@@ -26,7 +28,8 @@ from typing import NamedTuple
 import numpy as np
 
 DIRECTIONS_RAD = {"forward": 0.0, "left": math.pi / 2, "backward": math.pi, "right": -math.pi / 2}
-RESULTS_VERSION = 2  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not
+RESULTS_VERSION = 3  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not;
+# 3 adds the MJX walks' knee torques and cost of transport
 
 
 # scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config
@@ -164,6 +167,7 @@ class SweepConfig:
         direction: ``forward``, ``backward``, ``left``, ``right`` or degrees from forward (``"45"``).
         directions: several push directions, each a whole grid (direction-major rows); ``()``: ``direction``
             alone.
+        repeats: runs of the whole grid, each rollout with its own draw of noise and robot (repeat-major rows).
         push_step: index of the step during which the push starts.
         push_duration_s: push duration, s.
         speed_mps: commanded walking speed (0: in place).
@@ -197,6 +201,7 @@ class SweepConfig:
     impulses_ns: tuple[float, ...] = tuple(float(v) for v in np.linspace(0.0, 20.0, 41))
     direction: str = "forward"
     directions: tuple[str, ...] = ()
+    repeats: int = 1
     push_step: int = 2
     push_duration_s: float = 0.1
     speed_mps: float = 0.0
@@ -231,6 +236,8 @@ class SweepConfig:
             direction_rad(d)
         if not isinstance(self.directions, tuple):
             raise GridError(f"directions must be a tuple, got {self.directions!r}")
+        if not isinstance(self.repeats, int) or not 1 <= self.repeats <= MAX_AXIS:
+            raise GridError(f"repeats must be a whole number in [1, {MAX_AXIS}], got {self.repeats!r}")
         if not self.phases or not self.impulses_ns:
             raise GridError("the grid is empty (no phases or no impulses)")
         if any(v < 0 or not math.isfinite(v) for v in self.impulses_ns):
@@ -352,12 +359,21 @@ class SweepConfig:
         return len(self.phases) * len(self.impulses_ns) * self.n_scenarios
 
     @property
-    def n_rollouts(self) -> int:
+    def n_per_repeat(self) -> int:
+        """Rows of one run of the grid (every direction)."""
         return self.n_per_direction * len(self.direction_list)
 
+    @property
+    def n_rollouts(self) -> int:
+        return self.n_per_repeat * self.repeats
+
     def for_direction(self, d: int) -> "SweepConfig":
-        """The single-direction configuration of direction ``d`` (for reports on its rows)."""
+        """The single-direction configuration of direction ``d`` (for reports on its rows, every repeat)."""
         return dataclasses.replace(self, direction=self.direction_list[d], directions=())
+
+    def for_repeat(self) -> "SweepConfig":
+        """The configuration of one repeat's rows."""
+        return dataclasses.replace(self, repeats=1)
 
     def compiled_part(self) -> "SweepConfig":
         """The configuration without what reaches the rollouts as inputs (seed, grid, directions, chunk).
@@ -366,7 +382,7 @@ class SweepConfig:
         axes stay (a rollout finds its scenario from its index: ``index % n_scenarios``).
         """
         return dataclasses.replace(self, seed=0, phases=(0.0,), impulses_ns=(0.0,), chunk=1, direction="forward",
-                                   directions=())
+                                   directions=(), repeats=1)
 
     def to_dict(self) -> dict:
         """Every field as JSON values (the overrides as a dict) and the results version."""
@@ -381,6 +397,8 @@ class SweepConfig:
             d["directions"] = list(self.directions)
         else:
             del d["directions"]  # likewise
+        if self.repeats == 1:
+            del d["repeats"]  # likewise
         d["results_version"] = RESULTS_VERSION
         return d
 
@@ -437,7 +455,7 @@ class GridInputs(NamedTuple):
 
 
 def grid_inputs(config: SweepConfig) -> GridInputs:
-    """All rollouts of a sweep: direction-major, then phase, impulse, scenario-minor."""
+    """All rollouts of a sweep: repeat-major, then direction, phase, impulse, scenario-minor."""
     ph, imp = np.meshgrid(np.asarray(config.phases, float), np.asarray(config.impulses_ns, float), indexing="ij")
     k = config.n_scenarios
     dirs = config.direction_list
@@ -445,9 +463,9 @@ def grid_inputs(config: SweepConfig) -> GridInputs:
     index = np.arange(n, dtype=np.int32)
     return GridInputs(
         index=index,
-        phase=np.tile(np.repeat(ph.ravel(), k), len(dirs)),
-        impulse_ns=np.tile(np.repeat(imp.ravel(), k), len(dirs)),
-        direction_rad=np.repeat([direction_rad(d) for d in dirs], config.n_per_direction),
+        phase=np.tile(np.repeat(ph.ravel(), k), len(dirs) * config.repeats),
+        impulse_ns=np.tile(np.repeat(imp.ravel(), k), len(dirs) * config.repeats),
+        direction_rad=np.tile(np.repeat([direction_rad(d) for d in dirs], config.n_per_direction), config.repeats),
         scenario_index=index % k,
     )
 

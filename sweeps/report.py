@@ -55,9 +55,28 @@ def scenario_rows(config: SweepConfig, results: dict, s: int) -> dict:
 
 
 def direction_rows(config: SweepConfig, results: dict, d: int) -> dict:
-    """The results of push direction ``d`` alone (its block of ``config.n_per_direction`` rows)."""
-    b = config.n_per_direction
-    return {name: np.asarray(v)[d * b:(d + 1) * b] for name, v in results.items()}
+    """The results of push direction ``d`` alone (its block of ``config.n_per_direction`` rows in each repeat),
+    in the row order of ``config.for_direction(d)``."""
+    b, r = config.n_per_direction, config.n_per_repeat
+    rows = (np.arange(config.repeats)[:, None] * r + d * b + np.arange(b)).ravel()
+    return {name: np.asarray(v)[rows] for name, v in results.items()}
+
+
+def repeat_rows(config: SweepConfig, results: dict, r: int) -> dict:
+    """The results of repeat ``r`` of the grid (rows of ``config.for_repeat()``)."""
+    n = config.n_per_repeat
+    return {name: np.asarray(v)[r * n:(r + 1) * n] for name, v in results.items()}
+
+
+def pooled(config: SweepConfig, results: dict) -> dict:
+    """One repeat's rows where a push counts as recovered only if it recovered in every repeat (for maps)."""
+    if config.repeats == 1:
+        return results
+    subs = [repeat_rows(config, results, r) for r in range(config.repeats)]
+    ok = np.all([recovered(sub) for sub in subs], axis=0)
+    nan = np.any([sub["nan"] for sub in subs], axis=0)
+    steps = np.max([sub["steps_to_recover"] for sub in subs], axis=0)
+    return dict(subs[0], fell=~ok & ~nan, nan=nan, steps_to_recover=np.where(ok, steps, -1))
 
 
 def blocks(config: SweepConfig, results: dict) -> list[tuple[SweepConfig, dict]]:
@@ -97,9 +116,11 @@ def per_phase(config: SweepConfig, results: dict) -> list[dict]:
     for ph in config.phases:
         sel = np.isclose(results["phase"], ph)
         best = _max_or_none(np.where(ok[sel], results["impulse_ns"][sel], np.nan))
-        order = np.argsort(results["impulse_ns"][sel], kind="stable")
-        n_ok = int(np.cumprod(ok[sel][order]).sum())  # recovered from the smallest impulse up
-        up_to = float(results["impulse_ns"][sel][order][n_ok - 1]) if n_ok else None
+        imp, inv = np.unique(results["impulse_ns"][sel], return_inverse=True)
+        ok_u = np.ones(imp.size, bool)
+        np.logical_and.at(ok_u, inv.ravel(), ok[sel])  # recovered in every repeat
+        n_ok = int(np.cumprod(ok_u).sum())  # recovered from the smallest impulse up
+        up_to = float(imp[n_ok - 1]) if n_ok else None
         rows.append(dict(
             phase=float(ph), max_recovered_impulse_ns=best, recovered_up_to_ns=up_to,
             max_recovered_force_n=None if best is None else best / config.push_duration_s,
@@ -195,7 +216,7 @@ def phase_rows(cfg: SweepConfig, res: dict) -> list[dict]:
     """:func:`per_phase`, over every direction and scenario of the sweep: an impulse counts as recovered at a
     phase only where every direction and every scenario recovered it."""
     if not cfg.scenario and not cfg.directions:
-        return per_phase(cfg, res)
+        return per_phase(cfg, res)  # repeats: an impulse is recovered up to only if every repeat recovered it
     subs = [scenario_rows(c, r, s) for c, r in blocks(cfg, res) for s in range(cfg.n_scenarios)]
     ok = np.all([recovered(sub) for sub in subs], axis=0)
     nan = np.any([sub["nan"] for sub in subs], axis=0)
@@ -271,16 +292,20 @@ def _legend(fig) -> None:
                loc="lower center", ncol=3, frameon=False)
 
 
-def save_basin_png(path: Path, runs: list[SweepRun]) -> None:
-    """One basin map per run, side by side, to ``path`` (Agg backend)."""
+def save_basin_png(path: Path, runs: list[SweepRun], row_per_run: bool = False) -> None:
+    """Basin maps of runs (one per direction and scenario of each; several repeats pooled: :func:`pooled`) to
+    ``path`` (Agg backend): up to :data:`MAX_COLUMNS` a row, or with ``row_per_run`` one row per run (the
+    comparison: rows controllers, columns directions and scenarios). One colour scale for all."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = []
+    rows = []
     for run in runs:
+        panels = []
         for cfg, res in blocks(run.config, run.results):
+            cfg, res = cfg.for_repeat(), pooled(cfg, res)
             where = f"{cfg.direction} pushes" if run.config.directions else ""
             if not cfg.scenario:
                 panels.append((cfg, res, f"{cfg.model} / {cfg.controller}: {where}" if where else None))
@@ -289,14 +314,23 @@ def save_basin_png(path: Path, runs: list[SweepRun]) -> None:
                 label = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
                 panels.append((cfg, scenario_rows(cfg, res, s),
                                f"{cfg.controller}: {label}" + (f", {where}" if where else "")))
-    ncol = min(len(panels), MAX_COLUMNS)
-    nrow = -(-len(panels) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(5.8 * ncol, 4.8 * nrow), squeeze=False, sharey=True)
-    for ax, (cfg, res, title) in zip(axes.ravel(), panels):
-        plot_basin(ax, cfg, res, title)
-    for ax in axes.ravel()[len(panels):]:
-        ax.set_visible(False)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+        rows.append(panels)
+    if max(len(r) for r in rows) == 1:  # one map per run: side by side
+        row_per_run = False
+    if not row_per_run:
+        flat = [p for panels in rows for p in panels]
+        ncol = min(len(flat), MAX_COLUMNS)
+        rows = [flat[i:i + ncol] for i in range(0, len(flat), ncol)]
+    ncol, nrow = max(len(r) for r in rows), len(rows)
+    w, h = (5.8, 4.8) if not row_per_run else (4.2, 3.6)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(w * ncol, h * nrow), squeeze=False, sharey=True)
+    for r, panels in enumerate(rows):
+        for c in range(ncol):
+            if c < len(panels):
+                plot_basin(axes[r, c], *panels[c])
+            else:
+                axes[r, c].set_visible(False)
+    fig.tight_layout(rect=(0, 0.07 / nrow, 1, 1))
     _legend(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -316,7 +350,8 @@ def write_outputs(out_dir: Path, run: SweepRun) -> dict:
 
 
 def compare_table(runs: list[SweepRun]) -> dict:
-    """Per phase, each controller's largest recovered impulse; overall recovery rates."""
+    """Per phase, each controller's largest recovered impulse (in every direction and scenario); per direction,
+    the largest it recovered; overall recovery rates."""
     cfg = runs[0].config
     rows = []
     per = {r.config.controller: phase_rows(r.config, r.results) for r in runs}
@@ -324,11 +359,15 @@ def compare_table(runs: list[SweepRun]) -> dict:
         rows.append(dict(phase=float(ph), **{f"{c}_max_recovered_impulse_ns": per[c][k]["max_recovered_impulse_ns"]
                                             for c in per}))
     out = dict(
-        controllers=list(per), direction=cfg.direction, push_duration_s=cfg.push_duration_s,
+        controllers=list(per), direction=", ".join(cfg.direction_list), push_duration_s=cfg.push_duration_s,
         recovery_rate={r.config.controller: recovery_rate(r.results) for r in runs},
         per_phase=rows,
         wall_s={r.config.controller: r.timing["wall_s"] for r in runs},
     )
+    if cfg.directions:
+        out["max_recovered_impulse_ns_per_direction"] = {
+            r.config.controller: {c.direction: _max_or_none(np.where(recovered(b), b["impulse_ns"], np.nan))
+                                  for c, b in blocks(r.config, r.results)} for r in runs}
     if cfg.scenario:
         out["scenarios"] = cfg.scenarios()
         out["recovery_rate_per_scenario"] = {
@@ -342,7 +381,9 @@ def format_compare_table(table: dict) -> str:
     ctrls = table["controllers"]
     dur = table["push_duration_s"]
     head = f"{'phase':>6} " + " ".join(f"{c:>22}" for c in ctrls)
-    lines = [f"largest recovered {table['direction']} impulse, N s (force N) for {dur:g} s pushes", head]
+    what = (f"impulse recovered in every direction ({table['direction']})" if ", " in table["direction"]
+            else f"recovered {table['direction']} impulse")
+    lines = [f"largest {what}, N s (force N) for {dur:g} s pushes", head]
     for row in table["per_phase"]:
         cells = []
         for c in ctrls:

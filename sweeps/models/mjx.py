@@ -8,7 +8,9 @@ the controller's ``first_step_s + k step_time_s`` (one start-up phase for
 the time-projection family), so the push, on the upper torso, starts at
 ``first_step_s + (push_step + phase) step_time_s`` as in ``python -m
 mjx_coman.walk`` and lasts ``push_duration_s``; the walk lasts
-``first_step_s + n_steps step_time_s``. The environment is the controller's
+``first_step_s + n_steps step_time_s``. Effort (:func:`effort`, from
+records every 10 ms): mean absolute knee torque and cost of transport while
+walking before the push, peak knee torque over the walk. The environment is the controller's
 plant, :func:`mjx_coman.rollout.plant_env_params` (position control: the
 seed's gains with a stiffer ankle roll loop; or a torque plant). Falls and
 steps to recover are the simulator's
@@ -151,6 +153,45 @@ def gait(config: SweepConfig):
     return ctrl.gait(cfg)
 
 
+EFFORT_EVERY = 5  # ticks between effort records (10 ms)
+
+
+def effort_record(state):
+    """A save function: both knees' link torques (N m), the joints' absolute mechanical power
+    ``sum |tau_j qdot_j|`` (W) and the CoM's horizontal position (m), of the tick's last physics step."""
+    from mjx_coman import ground_truth as gt
+    from mjx_coman.actuators import JOINT_INDEX
+
+    d = state.env.data
+    knees = jnp.asarray([JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"]])
+    return dict(knee_nm=d.ctrl[knees], power_w=jnp.sum(jnp.abs(d.ctrl * d.qvel[6:])), com_xy_m=gt.com_m(d)[:2])
+
+
+def effort(time_s, saved, walk_from_s, walk_to_s, fall_time_s, mass_kg):
+    """Effort statistics of a walk from its :func:`effort_record` records.
+
+    While walking, over the records in ``[walk_from_s, walk_to_s)`` before any fall: the mean absolute knee
+    torque (both knees) and the cost of transport ``E / (m g d)`` (``E`` the absolute mechanical work of
+    the joints, ``d`` the CoM's horizontal travel; NaN below 1 cm of travel). Over the whole walk before
+    any fall: the peak absolute knee torque.
+    """
+    up = time_s < fall_time_s
+    w = up & (time_s >= walk_from_s) & (time_s < walk_to_s)
+    knee = jnp.abs(saved["knee_nm"])
+    n = jnp.maximum(jnp.sum(w), 1)
+    mean_knee = jnp.sum(jnp.where(w[:, None], knee, 0.0)) / (2 * n)
+    dt = time_s[1] - time_s[0]
+    work = jnp.sum(jnp.where(w, saved["power_w"], 0.0)) * dt
+    idx = jnp.arange(time_s.shape[0])
+    first = jnp.min(jnp.where(w, idx, idx.shape[0] - 1))
+    last = jnp.max(jnp.where(w, idx, 0))
+    travel = jnp.linalg.norm(saved["com_xy_m"][last] - saved["com_xy_m"][first])
+    cot = jnp.where(travel > 0.01, work / (mass_kg * 9.81 * jnp.maximum(travel, 0.01)), jnp.nan)
+    return dict(mean_abs_knee_torque_nm=jnp.where(jnp.any(w), mean_knee, jnp.nan),
+                cost_of_transport=jnp.where(jnp.any(w), cot, jnp.nan),
+                peak_abs_knee_torque_nm=jnp.max(jnp.where(up[:, None], knee, 0.0)))
+
+
 def walk_spec(config: SweepConfig):
     """The static :class:`mjx_coman.rollout.WalkSpec` of a sweep."""
     from mjx_coman.ground_truth import judge_on
@@ -162,7 +203,8 @@ def walk_spec(config: SweepConfig):
 
 def ticks_per_rollout(config: SweepConfig) -> int:
     """Control ticks of one walk (2 ms, each 2 physics steps of 1 ms)."""
-    return _rollout_module().n_ticks(walk_spec(config), gait(config).control_period_s)
+    ro = _rollout_module()
+    return ro.n_ticks(walk_spec(config), gait(config).control_period_s, ro.SaveAt(effort_record, EFFORT_EVERY))
 
 
 def env_step_s(config: SweepConfig) -> float:
@@ -217,12 +259,15 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     push = ro.Push(start_s=jnp.asarray(start_s, f), duration_s=jnp.asarray(config.push_duration_s, f),
                    force_n=force.astype(f))
     joy = _controllers().joystick(config.speed_mps)
-    r = ro.walk(ctrl.core(), cfg, env, push, walk_key, walk_spec(config), joy)
+    r = ro.walk(ctrl.core(), cfg, env, push, walk_key, walk_spec(config), joy,
+                save=ro.SaveAt(effort_record, EFFORT_EVERY))
+    # walking: from the first step to the push
+    eff = effort(r.time_s, r.saved, g.first_step_s, start_s, r.fall_time_s, jnp.sum(env.model.body_mass))
     return RolloutOutputs(
         fell=r.fell, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
         max_abs_footstep_adjustment_m=r.max_abs_footstep_adjustment_m, fall_time_s=r.fall_time_s, nan=r.nan,
         extra=dict(touchdowns=r.touchdowns, mean_speed_mps=r.mean_speed_mps,
-                   cycle_forward_mps=r.cycle_velocity_mps[0], cycle_lateral_mps=r.cycle_velocity_mps[1]),
+                   cycle_forward_mps=r.cycle_velocity_mps[0], cycle_lateral_mps=r.cycle_velocity_mps[1], **eff),
     )
 
 

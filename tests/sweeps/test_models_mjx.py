@@ -60,3 +60,20 @@ def test_small_mjx_map(tmp_path):
     assert np.all(res["touchdowns"][res["impulse_ns"] == 0] >= 5)
     header = (tmp_path / "results.csv").read_text().splitlines()[0]
     assert "cycle_forward_mps" in header and "touchdowns" in header
+
+
+def test_effort_is_the_mean_knee_torque_and_work_per_weight_and_distance_while_walking():
+    """Records every 10 ms: constant 20 W and |knee torques| 3 and 5 N m while the CoM walks 0.1 m/s from 0.4 s
+    (the first step) to the push at 1.4 s; a 40 N m knee torque after the push. CoT = 20 W / (m g 0.1 m/s)."""
+    t = np.arange(0.0, 2.0, 0.01)
+    saved = dict(knee_nm=np.stack([np.full(t.size, 3.0), np.full(t.size, -5.0)], 1),
+                 power_w=np.full(t.size, 20.0), com_xy_m=np.stack([0.1 * t, np.zeros(t.size)], 1))
+    saved["knee_nm"][t > 1.6, 0] = 40.0
+    e = mjx.effort(t, saved, 0.4, 1.4, np.inf, 30.0)
+    assert float(e["mean_abs_knee_torque_nm"]) == pytest.approx(4.0)
+    assert float(e["cost_of_transport"]) == pytest.approx(20.0 / (30.0 * 9.81 * 0.1), rel=0.02)  # 99 of 100 gaps
+    assert float(e["peak_abs_knee_torque_nm"]) == 40.0
+    fell = mjx.effort(t, saved, 0.4, 1.4, 1.5, 30.0)  # the peak after a fall does not count
+    assert float(fell["peak_abs_knee_torque_nm"]) == 5.0
+    still = dict(saved, com_xy_m=np.zeros((t.size, 2)))
+    assert np.isnan(float(mjx.effort(t, still, 0.4, 1.4, np.inf, 30.0)["cost_of_transport"]))  # no travel

@@ -2,34 +2,14 @@
 
 import numpy as np
 
-from sweeps.grid import SweepConfig, grid_inputs
-from sweeps.report import blocks, phase_rows, summarize
-from sweeps.runner import SweepRun, failure_reason
+from sweeps.grid import SweepConfig
+from sweeps.report import blocks, phase_rows, pooled, repeat_rows, summarize
 
-TIMING = dict(wall_s=1.0, first_chunk_s=0.5, run_s=0.5, rollouts_per_s=1.0, env_steps_per_s=1.0,
-              rate_includes_compile=False, ticks_per_rollout=10, env_step_s=0.002, rollouts_run=1,
-              rollouts_resumed=0, chunks_run=1, chunks_resumed=0, chunk=1, device_count=1, process_count=1,
-              backend="cpu", devices=["cpu"])
-
-
-def fake_run(cfg: SweepConfig, limit_ns) -> SweepRun:
-    """Every push at or below ``limit_ns(direction_rad, phase)`` recovered in 2 steps, the rest fell."""
-    g = grid_inputs(cfg)
-    limit = np.array([limit_ns(d, p) for d, p in zip(g.direction_rad, g.phase)])
-    fell = g.impulse_ns > limit
-    nan = np.zeros_like(fell)
-    res = dict(g._asdict(), force_n=g.impulse_ns / cfg.push_duration_s, fell=fell, nan=nan,
-               steps_to_recover=np.where(fell, -1, np.where(g.impulse_ns > 0, 2, 0)),
-               max_abs_footstep_adjustment_m=np.zeros(fell.size), fall_time_s=np.where(fell, 1.0, np.inf))
-    res["reason"] = failure_reason(fell, nan)
-    return SweepRun(cfg, res, TIMING)
-
-
-def test_each_direction_is_summarised_as_its_own_sweep_and_the_pooled_rows_need_every_direction():
+def test_each_direction_is_summarised_as_its_own_sweep_and_the_pooled_rows_need_every_direction(fake_run):
     cfg = SweepConfig(model="mjx", phases=(0.25, 0.75), impulses_ns=(2.0, 4.0, 6.0),
                       directions=("forward", "90", "backward")).validate()
     limits = {0.0: 6.0, 90.0: 2.0, 180.0: 4.0}  # by heading, both phases alike
-    run = fake_run(cfg, lambda d, p: limits[round(float(np.degrees(d)))])
+    run = fake_run(cfg, lambda g, i: limits[round(float(np.degrees(g.direction_rad[i])))])
     s = summarize(run)
     assert s["directions"] == ["forward", "90", "backward"] and s["rollouts"] == 18
     got = {r["direction"]: r["per_phase"][0]["max_recovered_impulse_ns"] for r in s["per_direction"]}
@@ -40,8 +20,22 @@ def test_each_direction_is_summarised_as_its_own_sweep_and_the_pooled_rows_need_
     assert [c.direction for c, _ in blocks(cfg, run.results)] == ["forward", "90", "backward"]
 
 
-def test_one_direction_has_no_per_direction_block():
+def test_one_direction_has_no_per_direction_block(fake_run):
     cfg = SweepConfig(model="mjx", phases=(0.5,), impulses_ns=(1.0, 3.0), direction="left").validate()
-    s = summarize(fake_run(cfg, lambda d, p: 2.0))
+    s = summarize(fake_run(cfg, lambda g, i: 2.0))
     assert "per_direction" not in s and s["direction"] == "left"
     assert s["per_phase"][0]["max_recovered_impulse_ns"] == 1.0 and s["median_steps_to_recover"] == 2.0
+
+
+def test_a_push_is_recovered_in_the_pooled_map_only_if_every_repeat_recovered_it(fake_run):
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0), directions=("0", "180"),
+                      repeats=3).validate()
+    assert cfg.n_rollouts == 3 * 2 * 6
+    run = fake_run(cfg, lambda g, i: 3.0 - (i // cfg.n_per_repeat))  # repeat r recovers up to 3 - r N s
+    assert [float(repeat_rows(cfg, run.results, r)["impulse_ns"][~repeat_rows(cfg, run.results, r)["fell"]].max())
+            for r in range(3)] == [3.0, 2.0, 1.0]
+    one = pooled(cfg, run.results)
+    assert one["index"].size == cfg.n_per_repeat and one["impulse_ns"][~one["fell"]].max() == 1.0
+    s = summarize(run)
+    assert [r["per_phase"][0]["recovered_up_to_ns"] for r in s["per_direction"]] == [1.0, 1.0]
+    assert [r["per_phase"][0]["max_recovered_impulse_ns"] for r in s["per_direction"]] == [3.0, 3.0]
