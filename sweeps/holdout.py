@@ -99,7 +99,11 @@ def summary(run) -> dict:
 
 
 def compare(runs: dict) -> dict:
-    """Per set (``"seed"``, ``"tuned"``): per direction summaries and the pooled rates."""
+    """Per set (``"seed"``, ``"tuned"``): per direction summaries and the pooled rates; ``paired``: the two
+    sets' walks pushed alike with the same noise (:func:`sweeps.stats.paired`: Wilson intervals, McNemar's
+    exact test; a walk gone non-finite did not recover)."""
+    from sweeps import stats
+
     out = {}
     for name, lst in runs.items():
         ok = np.concatenate([report.recovered(r.results) for r in lst])
@@ -117,6 +121,9 @@ def compare(runs: dict) -> dict:
                          late_error_median=float(np.median(late)) if late.size else None,
                          overrides=lst[0].config.to_dict()["controller_overrides"],
                          per_direction=[summary(r) for r in lst])
+    if set(SETS) <= set(runs):
+        a, b = (np.concatenate([report.recovered(r.results) for r in runs[n]]) for n in SETS)
+        out["paired"] = stats.paired(a, b, names=SETS)
     return out
 
 
@@ -213,7 +220,7 @@ def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: 
             report.write_outputs(folder, run)
             runs[name].append(run)
     table = compare(runs)
-    for name in table:
+    for name in SETS:
         table[name]["wall_s"] = float(sum(r.timing["wall_s"] for r in runs[name]))
     save_text_atomic(out / "holdout.json", strict_json(dict(table, model=model, grid=dict(grid))))
     save_runs(out / "holdout.npz", runs)
@@ -234,6 +241,12 @@ def format_table(table: dict) -> str:
         lines.append(f"  held-out {t['model']} grid, {name} constants: {report.percent(t['recovery_rate'])} of {t['rollouts']} "
                      f"recovered; {t['settled']} pushed walks settled, after {steps} steps on average; "
                      f"largest impulse recovered at the weakest phase (N s): {', '.join(weakest)}")
+    if "paired" in table:
+        p = table["paired"]
+        iv = lambda n: "[{:.1%}, {:.1%}]".format(*p[f"{n}_interval"])  # noqa: E731
+        lines.append(f"  paired over {p['pairs']} walks: seed {p['seed_rate']:.1%} {iv('seed')}, tuned "
+                     f"{p['tuned_rate']:.1%} {iv('tuned')} (95 % Wilson); recovered by seed only {p['seed_only']}, "
+                     f"by tuned only {p['tuned_only']}: {p['verdict']}")
     return "\n".join(lines)
 
 

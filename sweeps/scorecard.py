@@ -23,21 +23,11 @@ import numpy as np
 
 from sweeps.grid import SweepConfig, direction_rad
 from sweeps.report import direction_rows, recovered, scenario_rows
+from sweeps.stats import bootstrap_interval
 from sweeps.runner import SweepRun
 
 TOLERATED_SHARE = 0.5
-BOOTSTRAP_DRAWS = 2000
 EFFORT = ("mean_abs_knee_torque_nm", "cost_of_transport", "peak_abs_knee_torque_nm")
-
-
-def bootstrap_interval(values, draws: int = BOOTSTRAP_DRAWS, seed: int = 0) -> list[float] | None:
-    """95 % percentile bootstrap interval of the mean of ``values`` (``None`` for fewer than two)."""
-    v = np.asarray(values, float)
-    if v.size < 2:
-        return None
-    rng = np.random.default_rng(seed)
-    means = v[rng.integers(0, v.size, size=(draws, v.size))].mean(axis=1)
-    return [float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))]
 
 
 def largest_recovered_ns(res: dict) -> float:

@@ -325,7 +325,7 @@ def sway_record(state):
 def tune_problem(tc) -> TuneProblem:
     """Ground-truth sway after pushes of the MJX walk, as a function of the controller's tunable settings.
 
-    ``tc.tunables`` names the settings (default ``deadzone`` and ``zeta``); each moves in
+    ``tc.tunables`` names the settings (default: the controller's ``tune_default``); each moves in
     unconstrained coordinates by its bounds. The scenarios: ``min(tc.batch, 2)`` 0.1 s pushes, forward or
     backward, in walking step ``tc.push_step`` (at 30-70 % of it, 25-100 % of ``tc.impulse_max_ns``) of a walk
     that ends ``TUNE_SECONDS_AFTER`` later; the loss is the mean square of the sagittal distance of the CoM
@@ -333,7 +333,7 @@ def tune_problem(tc) -> TuneProblem:
     """
     ctrls, ro = _controllers(), _rollout_module()
     ctrl = ctrls.get(tc.controller)  # the names are checked before the config is built (seconds for the 3LP's)
-    names = tuple(tc.tunables) if tc.tunables else tuple(n for n in ("deadzone", "zeta") if n in ctrl.tunables())
+    names = tuple(tc.tunables or ctrl.tune_default or ctrl.tunables())
     by_name = {s.name: s for s in ctrl.settings}
     for n in names:
         if n not in by_name or not by_name[n].tunable:
@@ -402,11 +402,12 @@ def tune_problem(tc) -> TuneProblem:
 
 
 def holdout_grid(record: dict) -> dict:
-    """Held-out MJX sweeps of a tuning record: forward and backward, 4 phases x 0-8 N s in walking step 2 of
-    8-step walks, nominal IMU/F-T noise and 2 mrad encoder offsets (the systematic errors the dead-zones are for)."""
-    return dict(directions=("forward", "backward"), phases=(0.0, 0.25, 0.5, 0.75),
-                impulses_ns=(0.0, 2.0, 4.0, 6.0, 8.0), n_steps=8, push_step=2, sensor_noise_scale=1.0,
-                encoder_offset_std_rad=0.002, chunk=64)
+    """Held-out MJX sweeps of a tuning record: forward, backward, left and right, 4 phases x 15 impulses of
+    1-8 N s (240 walks per set of constants) in walking step 2 of 8-step walks, nominal IMU/F-T noise and
+    2 mrad encoder offsets (the systematic errors the dead-zones are for)."""
+    return dict(directions=("forward", "backward", "left", "right"), phases=(0.0, 0.25, 0.5, 0.75),
+                impulses_ns=tuple(float(v) for v in np.linspace(1.0, 8.0, 15)), n_steps=8, push_step=2,
+                sensor_noise_scale=1.0, encoder_offset_std_rad=0.002, chunk=60)
 
 
 def load() -> Model:

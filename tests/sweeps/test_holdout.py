@@ -17,10 +17,26 @@ RECORD = dict(plant="3lp", controller="time-projection", config=dict(seed=0, rob
 def test_held_out_configs_of_each_model_carry_the_overrides():
     for model, window in (("3lp", ("window_samples", 11.6)), ("mjx", ("window", 12))):
         cfgs = holdout.holdout_configs(RECORD, model, RECORD["overrides_after"], phases=(0.5,), impulses_ns=(0.0, 3.0))
-        assert [c.direction for c in cfgs] == ["forward", "backward"] and all(c.model == model for c in cfgs)
+        dirs = ["forward", "backward"] + (["left", "right"] if model == "mjx" else [])
+        assert [c.direction for c in cfgs] == dirs and all(c.model == model for c in cfgs)
         ov = cfgs[0].overrides()
         assert ov["zeta"] == 0.25 and ov[window[0]] == window[1] and ov["deadzone"] == (0.001, 0.002, 0.03, 0.05)
         assert cfgs[0].seed == 1  # the tuning seed + 1: other noise than training's
+
+
+def test_the_default_held_out_grids_hold_at_least_200_walks_per_set():
+    for model in ("3lp", "mjx"):
+        assert sum(c.n_rollouts for c in holdout.holdout_configs(RECORD, model, {})) >= 200
+
+
+def test_the_sets_are_compared_pair_by_pair(fake_run):
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0, 4.0)).validate()
+    seed, tuned = fake_run(cfg, lambda g, i: 2.0), fake_run(cfg, lambda g, i: 4.0 if g.phase[i] else 1.0)
+    t = holdout.compare({"seed": [seed], "tuned": [tuned]})
+    p = t["paired"]
+    assert (p["pairs"], p["both"], p["seed_only"], p["tuned_only"], p["neither"]) == (8, 3, 1, 2, 2)
+    assert p["seed_rate"] == t["seed"]["recovery_rate"] == 0.5 and p["mcnemar_p"] == 1.0
+    assert "paired over 8 walks" in holdout.format_table(dict(t, seed=dict(t["seed"], wall_s=1.0)))
 
 
 def test_flat_and_record_files_give_the_overrides(tmp_path):

@@ -7,17 +7,7 @@ import numpy as np
 import pytest
 
 from sweeps.grid import SweepConfig, freeze_scenario
-from sweeps.scorecard import bootstrap_interval, markdown, scorecard, tolerated
-
-
-def test_bootstrap_interval_brackets_the_mean_and_shrinks_with_more_seeds():
-    rng = np.random.default_rng(1)
-    small, large = rng.normal(5.0, 1.0, 4), rng.normal(5.0, 1.0, 64)
-    lo, hi = bootstrap_interval(small)
-    assert lo <= small.mean() <= hi
-    lo2, hi2 = bootstrap_interval(large)
-    assert lo2 <= large.mean() <= hi2 and hi2 - lo2 < hi - lo
-    assert bootstrap_interval([3.0]) is None and bootstrap_interval([2.0, 2.0]) == [2.0, 2.0]
+from sweeps.scorecard import markdown, scorecard, tolerated
 
 
 def test_rows_per_controller_and_scenario_with_each_directions_largest_impulse(fake_run):
