@@ -45,7 +45,7 @@ class TuneConfig:
         robot: 3LP parameter preset (3lp).
         controller: the controller whose constants are tuned (a name of the model).
         controller_overrides: ``((setting, value), ...)``: its other settings (mjx).
-        tunables: the settings tuned (mjx; default ``deadzone``, ``zeta``).
+        tunables: the settings tuned (mjx; default: the controller's ``tune_default``).
         steps: optimiser steps.
         learning_rate: optimiser step size in the unconstrained coordinates.
         optimizer: ``adam``, ``adamw`` or ``sgd`` (momentum 0.9).
@@ -249,11 +249,15 @@ HELP = "tune a controller's constants by gradient (optax) on 3lp or mjx"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``coman-sweep tune`` (registered by :mod:`sweeps.cli`)."""
     d = TuneConfig()
-    p.add_argument("--plant", choices=PLANTS, default=d.plant, help="3lp (exact gradients) or mjx (forward mode)")
+    p.add_argument("--plant", choices=PLANTS, default=None,
+                   help="3lp (exact gradients) or mjx (forward mode); default 3lp for time-projection and dlqr "
+                        "without --set or --tune, else mjx")
     p.add_argument("--robot", default=d.robot, help="3LP parameter preset (3lp)")
     p.add_argument("--controller", default=d.controller, help="the controller tuned (a name of the plant)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="its other settings (mjx)")
-    p.add_argument("--tune", default=None, help="comma-separated tunable settings (mjx; default deadzone,zeta)")
+    p.add_argument("--tune", default=None,
+                   help="comma-separated tunable settings (mjx; default: the controller's own choice, "
+                        "coman-sweep controllers lists them)")
     p.add_argument("--steps", type=int, default=d.steps, help=f"optimiser steps (default {d.steps})")
     p.add_argument("--lr", type=float, default=d.learning_rate, help="learning rate in unconstrained coordinates")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=d.optimizer)
@@ -276,9 +280,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--x64", action="store_true", help="64-bit floats")
 
 
+def default_plant(controller: str, overrides: bool) -> str:
+    """``3lp`` for the controllers the 3LP model has (without MJX-only options), else ``mjx``."""
+    return "3lp" if controller in ("time-projection", "dlqr") and not overrides else "mjx"
+
+
 def config_from_args(args) -> TuneConfig:
     from sweeps.grid import freeze_overrides
 
+    if args.plant is None:
+        args.plant = default_plant(args.controller, bool(args.set or args.tune))
     overrides = ()
     if args.set:
         from mjx_coman import controllers

@@ -198,6 +198,7 @@ class Controller(NamedTuple):
         settings: every keyword of ``make_config``, with this variant's defaults.
         privileged: reads the simulator's ground truth (``observation.truth``).
         description: one line.
+        tune_default: the tunable settings ``coman-sweep tune`` tunes unless told (``()``: every tunable).
     """
 
     name: str
@@ -208,6 +209,7 @@ class Controller(NamedTuple):
     settings: tuple[Setting, ...]
     privileged: bool = False
     description: str = ""
+    tune_default: tuple[str, ...] = ()
 
     def defaults(self) -> dict[str, Any]:
         """``{setting: default}`` of this variant."""

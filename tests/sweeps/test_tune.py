@@ -112,7 +112,7 @@ def test_bad_config_raises(field, value):
                                        (["--lr", "0"], "learning_rate"), (["--lr", "inf"], "learning_rate"),
                                        (["--plant", "mjx", "--controller", "nope"], "time-projection"),
                                        (["--plant", "mjx", "--set", "bogus=1"], "bogus"),
-                                       (["--set", "zeta=0.2"], "--set"),
+                                       (["--plant", "3lp", "--set", "zeta=0.2"], "--set"),
                                        (["--plant", "mjx", "--tune", "step_time_s"], "step_time_s"),
                                        (["--out", "/proc/x"], "/proc")])
 def test_bad_arguments_exit_2_with_one_line(args, word):
@@ -120,6 +120,18 @@ def test_bad_arguments_exit_2_with_one_line(args, word):
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and word in lines[0]
+
+
+def test_each_walking_controller_has_settings_to_tune_and_a_default_plant():
+    from mjx_coman import controllers
+
+    for name in controllers.names(walking=True):
+        ctrl = controllers.get(name)
+        chosen = ctrl.tune_default or ctrl.tunables()
+        assert chosen and set(chosen) <= set(ctrl.tunables()), name
+    assert controllers.get("footstep-mpc").tune_default[0].startswith("mpc_")  # seed 001's MPC weights, gains
+    assert tune.default_plant("time-projection", False) == "3lp" and tune.default_plant("dlqr", False) == "3lp"
+    assert tune.default_plant("time-projection", True) == "mjx" and tune.default_plant("footstep-mpc", False) == "mjx"
 
 
 @pytest.mark.slow

@@ -32,4 +32,5 @@ CONTROLLER = Controller(
     name="footstep-mpc", make_config=_config.make_config, init=_controller.init, step=_controller.step, gait=gait,
     settings=_config.SETTINGS,
     description="seed 001: LIPM footstep MPC with steering over the whole-body QP on the torque-controlled robot",
+    tune_default=("mpc_com_step_weight", "mpc_footstep_step_weight", "swing_kp_per_s2", "com_weight"),
 )

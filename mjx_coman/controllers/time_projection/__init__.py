@@ -26,4 +26,5 @@ CONTROLLER = Controller(
     name="time-projection", make_config=_config.make_config, init=_controller.init, step=_controller.step,
     gait=gait, settings=_config.SETTINGS,
     description="seed 000: 3LP time projection, footstep adjustment at every tick",
+    tune_default=("deadzone", "zeta"),
 )
