@@ -1,0 +1,37 @@
+"""Execute notebooks/08_side_by_side.ipynb at the small size: a live comparison of time projection and footstep
+MPC on a tiny grid (2 directions x 1 phase x 1 impulse, twice), its scorecard and combined figure, the stored
+tuning runs, and one rendered walk."""
+
+import json
+import re
+from pathlib import Path
+
+import nbformat
+from nbclient import NotebookClient
+
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "08_side_by_side.ipynb"
+
+
+def test_notebook_08_compares_both_controllers_and_renders_a_walk(tmp_path, monkeypatch):
+    monkeypatch.setenv("NB08_SIZE", "small")
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    NotebookClient(nb, timeout=900, kernel_name="python3",
+                   resources={"metadata": {"path": str(NOTEBOOK.parent)}}).execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.get("output_type") == "error"]
+    text = "".join(o.get("text", "") for o in outputs)
+    assert "2 scorecard rows: time-projection, footstep-mpc" in text
+    for ctrl in ("time-projection", "footstep-mpc"):
+        line = re.search(rf"^ *{ctrl}: (\d+)% recovered, (\d+) fell, (\d+) non-finite$", text, re.M)
+        assert line, text
+        assert int(line.group(2)) + int(line.group(3)) <= 4  # 4 walks each (2 directions, twice)
+    assert re.search(r"^direction +forward: most recovered [03] N s by ", text, re.M)
+    md = [o["data"]["text/markdown"] for o in outputs if "text/markdown" in o.get("data", {})]
+    assert len(md) == 1 and md[0].count("\n| ") == 3  # the scorecard: the header and one row per controller
+    images = [o for o in outputs if "image/png" in o.get("data", {}) or "image/gif" in o.get("data", {})]
+    assert len(images) == 2  # the combined figure and the rendered walk
+    assert "walk-time-projection" in text
+    stored = sorted((NOTEBOOK.parent / "data" / "08").glob("tune-*/holdout.json"))
+    for path in stored:  # each stored tuning run reports its paired held-out comparison
+        assert json.loads(path.read_text())["paired"]["pairs"] >= 200
+        assert "paired over" in text
