@@ -1,5 +1,6 @@
 """``coman-sweep region``: region boundaries by safeguarded Newton vs bisection, drawn over the basin map.
 
+    coman-sweep region --model mjx --controller NAME [--phases 4] [--impulses 0:12:25] [--directions forward]
     coman-sweep region [--controller time-projection] [--controllers time-projection,dlqr,open-loop]
                        [--phases 32] [--impulses 0:20:81] [--directions forward,backward] [--n-steps 10]
                        [--constants tune-out/tuned.json] [--draws 4] [--tol TOL] [--no-map] [--out region-out]
@@ -57,18 +58,23 @@ def _names(allowed, what):
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``coman-sweep region`` (registered by :mod:`sweeps.cli`)."""
-    p.add_argument("--controller", choices=CONTROLLERS_3LP, default="time-projection",
-                   help="controller of the boundary-over-basin-map figure")
+    p.add_argument("--model", choices=("3lp", "mjx"), default="3lp",
+                   help="3lp (default) or mjx: any walking controller on the simulated robot, Newton on the "
+                        "walk's ground-truth fall margin by forward mode (sweeps.region_mjx)")
+    p.add_argument("--controller", default="time-projection",
+                   help="controller of the boundary-over-basin-map figure (3lp: " + ", ".join(CONTROLLERS_3LP)
+                        + "; mjx: any walking controller)")
     p.add_argument("--controllers", type=_names(CONTROLLERS_3LP, "controllers"), default=CONTROLLERS_3LP,
                    help="controllers of the regions figure (comma-separated)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting of the 3LP controllers: lqr_weight_scale=P,V,T (the DLQR weight multipliers)")
-    p.add_argument("--phases", type=_conv(parse_phases), default=parse_phases("32"),
-                   help="push timings: a count N or a list in [0, 1) (default 32)")
-    p.add_argument("--impulses", type=_conv(parse_impulses), default=parse_impulses("0:20:81"),
-                   help="impulse grid, N s, of the map and the bisection (default 0:20:81)")
+    p.add_argument("--phases", type=_conv(parse_phases), default=None,
+                   help="push timings: a count N or a list in [0, 1) (default 32; mjx 4)")
+    p.add_argument("--impulses", type=_conv(parse_impulses), default=None,
+                   help="impulse grid, N s, of the map and the bisection (default 0:20:81; mjx 0:12:25)")
     p.add_argument("--directions", type=_names(tuple(DIRECTIONS_RAD), "directions"), default=("forward", "backward"))
-    p.add_argument("--n-steps", type=int, default=10, help="steps per rollout (push in step 2)")
+    p.add_argument("--n-steps", type=int, default=None,
+                   help="steps per rollout (default 10, push in step 2; mjx 6 walking steps, push in step 1)")
     p.add_argument("--constants", type=Path, default=None,
                    help="tuned.json of coman-sweep tune: add the seed's and the tuned constants' regions")
     p.add_argument("--draws", type=int, default=4, help="sensor draws (noise, bias) per direction with --constants")
@@ -81,6 +87,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _check(args) -> dict | None:
     """Validate the arguments; return the tuned record (or ``None``). Raises ``ValueError``."""
+    mjx = args.model == "mjx"
+    for name, default in (("phases", parse_phases("4" if mjx else "32")),
+                          ("impulses", parse_impulses("0:12:25" if mjx else "0:20:81")), ("n_steps", 6 if mjx else 10)):
+        if getattr(args, name) is None:
+            setattr(args, name, default)
+    if mjx:
+        from mjx_coman import controllers
+
+        if args.controller not in controllers.names(walking=True):
+            raise ValueError(f"unknown walking controller {args.controller!r} for --model mjx; choose from "
+                             f"{', '.join(controllers.names(walking=True))}")
+        if args.constants is not None or args.set:
+            raise ValueError("--constants and --set apply to --model 3lp")
+    elif args.controller not in CONTROLLERS_3LP:
+        raise ValueError(f"unknown controller {args.controller!r} for --model 3lp; choose from "
+                         f"{', '.join(CONTROLLERS_3LP)}")
     check_output_dir("--out", args.out)
     check_no_overwrite("--out", args.out, ("region.json",), args.force)
     imp = np.asarray(args.impulses, float)
@@ -226,6 +248,8 @@ def run(args, parser) -> int:
         record = _check(args)
     except ValueError as e:
         parser.error(str(e).splitlines()[0])
+    if args.model == "mjx":
+        return _run_mjx(args)
     import jax
     import jax.numpy as jnp
 
@@ -290,3 +314,46 @@ def run(args, parser) -> int:
           f"within the grid at {int(same.sum())}/{same.size} timings")
     print(f"wrote {out}/boundary.png, regions.png, region.json")
     return 0
+
+
+def _run_mjx(args) -> int:
+    """``--model mjx``: Newton against bisection on MJX walks (:mod:`sweeps.region_mjx`); region.json and
+    boundary.png."""
+    from jaxlp.files import save_bytes_atomic, save_text_atomic, strict_json
+    from sweeps import region_mjx
+
+    imp = np.asarray(args.impulses, float)
+    tol = args.tol or 0.5 * float(np.min(np.diff(imp)))
+    spec = region_mjx.Spec(controller=args.controller, n_steps=args.n_steps)
+    out = region_mjx.run(spec, args.phases, imp, tuple(args.directions), tol)
+    out["command"] = "coman-sweep " + " ".join(sys.argv[1:])
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    save_text_atomic(Path(args.out) / "region.json", strict_json(out))
+    save_bytes_atomic(Path(args.out) / "boundary.png", _mjx_figure(out))
+    print(f"mjx/{args.controller}: Newton {out['newton_rollouts']} rollouts vs bisection {out['bisection_rollouts']} "
+          f"(full map {out['full_map_rollouts']}); same boundary within the grid step ({out['grid_step_ns']:g} N s) "
+          f"at {out['same_within_grid']}/{out['lanes']} phase-direction lanes; compiled in {out['compile_s']:.0f} s")
+    for d, nb, bb in zip(out["directions"], out["newton_ns"], out["bisection_ns"]):
+        print(f"  {d:>8}: Newton " + " ".join(f"{v:5.2f}" for v in nb) + "  | bisection "
+              + " ".join(f"{v:5.2f}" for v in bb) + "  (N s per phase)")
+    print(f"wrote {args.out}/region.json, boundary.png")
+    return 0
+
+
+def _mjx_figure(out: dict) -> bytes:
+    def draw(plt):
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for k, d in enumerate(out["directions"]):
+            ax.plot(out["phases"], out["newton_ns"][k], "o-", color=f"C{k}", label=f"{d}: Newton")
+            ax.step(out["phases"], out["bisection_ns"][k], where="mid", color=f"C{k}", ls=":",
+                    label=f"{d}: bisection (grid {out['grid_step_ns']:g} N s)")
+        ax.set_xlabel("push start, fraction of walking step 1")
+        ax.set_ylabel("largest recoverable impulse, N s (0.1 s push)")
+        ax.set_title(f"MJX {out['controller']}: Newton {out['newton_rollouts']} vs bisection "
+                     f"{out['bisection_rollouts']} rollouts")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        return fig
+
+    return _plot_png(draw)
+

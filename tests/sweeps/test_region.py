@@ -109,7 +109,11 @@ def test_region_command_draws_the_boundary_over_the_map(tmp_path):
 @pytest.mark.skipif(not _registered(), reason="coman-sweep region is not registered in sweeps.cli yet")
 @pytest.mark.parametrize("args,word", [(["--impulses", "5,1,3"], "impulses"), (["--phases", "0"], "phases"),
                                        (["--controllers", "pid"], "controller"), (["--draws", "0"], "draws"),
-                                       (["--constants", "/nonexistent/tuned.json"], "constants")])
+                                       (["--constants", "/nonexistent/tuned.json"], "constants"),
+                                       (["--controller", "footstep-mpc"], "'footstep-mpc' for --model 3lp"),
+                                       (["--model", "mjx", "--controller", "pid"], "'pid' for --model mjx"),
+                                       (["--model", "mjx", "--set", "lqr_weight_scale=1,1,1"], "--model 3lp"),
+                                       (["--model", "bullet"], "bullet")])
 def test_bad_arguments_exit_2_with_one_line(args, word):
     p = subprocess.run([sys.executable, "-m", "sweeps", "region", *args], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
