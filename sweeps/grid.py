@@ -35,7 +35,8 @@ RESULTS_VERSION = 3  # in every hash: 2 judges MJX walks on ground truth (steps 
 
 
 # scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config
-SCENARIO_AXES = ("delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
+SCENARIO_AXES = ("actuator", "delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
+TEXT_AXES = ("actuator", "terrain")  # axes whose values are words
 MJX_CONTROL_PERIOD_S = 0.002
 MAX_N_STEPS = 200  # 80 s of 0.4 s steps; a billion steps was an out-of-memory traceback
 MAX_ROLLOUTS = 10_000_000  # per sweep: its results alone take about RESULT_BYTES each in memory
@@ -318,11 +319,11 @@ def freeze_overrides(overrides: dict) -> tuple:
 
 
 def freeze_scenario(axes: dict) -> tuple:
-    """``{axis: values}`` as the hashable, sorted ``scenario`` of a config (numbers as floats, terrain as text)."""
+    """``{axis: values}`` as the hashable, sorted ``scenario`` of a config (numbers as floats, words as text)."""
     out = []
     for a, values in sorted(dict(axes).items()):
         vals = values if isinstance(values, (list, tuple)) else (values,)
-        out.append((str(a), tuple(str(v) if a == "terrain" else float(v) for v in vals)))
+        out.append((str(a), tuple(str(v) if a in TEXT_AXES else float(v) for v in vals)))
     return tuple(out)
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.grid import SCENARIO_AXES, SweepConfig, direction_rad
+from sweeps.grid import SCENARIO_AXES, TEXT_AXES, SweepConfig, direction_rad
 from jaxlp.files import save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
 from sweeps.runner import SweepRun
 
@@ -238,7 +238,7 @@ def results_csv(config: SweepConfig, results: dict) -> str:
             f"{force[i]:.6g}", f"{results['direction_rad'][i]:.6g}", int(results["fell"][i]),
             int(results["steps_to_recover"][i]), f"{results['max_abs_footstep_adjustment_m'][i]:.6g}",
             f"{results['fall_time_s'][i]:.6g}", results["reason"][i],
-            *(results[k][i] if k == "terrain" else f"{float(results[k][i]):.6g}" for k in scen),
+            *(results[k][i] if k in TEXT_AXES else f"{float(results[k][i]):.6g}" for k in scen),
             *(f"{float(results[k][i]):.6g}" for k in extra),
         ])
     return buf.getvalue()

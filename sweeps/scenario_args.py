@@ -28,6 +28,7 @@ _HELP = {
     "joint_noise_deg": "std of the link encoder noise, deg (seed 001: 1)",
     "delay_ms": "extra controller-to-robot delay on the plant's 20 ms, ms (seed 001: 10)",
     "terrain": "flat, rough:CM[:SEED] (+-CM cm height field) or stairs:CM (risers, up in +x)",
+    "actuator": "ideal or sea: how a torque plant realises torque commands (position plants ignore it)",
 }
 
 
@@ -57,6 +58,13 @@ def _values(name: str, text: str, where: str) -> tuple:
             return tuple(parse_terrain(v).text for v in vals)
         except ValueError as e:
             raise GridError(f"{where}: {e}") from None
+    if name == "actuator":
+        from mjx_coman.actuators import TORQUE_LOOPS
+
+        bad = [v for v in vals if v not in TORQUE_LOOPS]
+        if bad:
+            raise GridError(f"{where}: actuator {bad[0]!r} is not one of {', '.join(TORQUE_LOOPS)}")
+        return tuple(vals)
     out = []
     for v in vals:
         try:

@@ -33,8 +33,11 @@ rollout (:class:`Scenario`), never controller code.
   parameters' levels.
 * **Delay** (``delay_ms``): an extra controller-to-robot transport delay on
   top of the plant's own, ``delay_ticks += round(delay_ms / control period)``.
+* **Actuator** (``actuator``: ``ideal`` or ``sea``): how a torque plant
+  realises torque commands (``ActuatorParams.torque_loop``): the desired
+  torque at the link, or the series-elastic loop with its bandwidth and lag.
 
-Payload, slope, noise and delay are arrays of the ``EnvParams``: one
+Payload, slope, noise, delay and actuator are arrays of the ``EnvParams``: one
 compiled walk covers several (:func:`batched_env_params`, with the
 ``in_axes`` of :func:`scenario_batch_axes`).
 """
@@ -52,7 +55,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from mjx_coman.actuators import DELAY_S, MAX_DELAY_TICKS
+from mjx_coman.actuators import DELAY_S, MAX_DELAY_TICKS, TORQUE_LOOPS
 from mjx_coman.env import EnvParams, batch_axes
 from mjx_coman.scenarios.terrain import parse_terrain, scene_model
 
@@ -99,6 +102,8 @@ class Scenario:
         imu_noise_deg: std of the IMU orientation noise, deg (``None``: the base parameters').
         joint_noise_deg: std of the link encoder noise, deg (``None``: the base parameters').
         delay_ms: extra controller-to-robot delay, ms (rounded to control ticks).
+        actuator: how torque commands are realised, ``"ideal"`` or ``"sea"`` (:data:`mjx_coman.actuators.TORQUE_LOOPS`;
+            ``None``: the base parameters'); position and voltage commands do not use it.
     """
 
     payload_kg: float = 0.0
@@ -109,6 +114,7 @@ class Scenario:
     imu_noise_deg: float | None = None
     joint_noise_deg: float | None = None
     delay_ms: float = 0.0
+    actuator: str | None = None
 
     def validate(self) -> "Scenario":
         """This scenario with its values checked and made canonical (floats, the terrain's text).
@@ -124,6 +130,8 @@ class Scenario:
         if len(com) != 3:
             raise ValueError(f"payload_com_m={self.payload_com_m!r} must be 3 numbers (x, y, z in the body frame, m)")
         com = tuple(_number("payload_com_m", c, -MAX_PAYLOAD_OFFSET_M, MAX_PAYLOAD_OFFSET_M) for c in com)
+        if self.actuator is not None and self.actuator not in TORQUE_LOOPS:
+            raise ValueError(f"actuator={self.actuator!r} must be one of {', '.join(TORQUE_LOOPS)}")
         noise = {}
         for name in ("imu_noise_deg", "joint_noise_deg"):
             v = getattr(self, name)
@@ -131,7 +139,7 @@ class Scenario:
         return Scenario(payload_kg=kg, payload_body=self.payload_body, payload_com_m=com,
                         slope_deg=_number("slope_deg", self.slope_deg, -MAX_SLOPE_DEG, MAX_SLOPE_DEG),
                         terrain=parse_terrain(self.terrain).text, delay_ms=_number("delay_ms", self.delay_ms, 0.0, 1e3),
-                        **noise)
+                        actuator=self.actuator, **noise)
 
     def to_dict(self) -> dict:
         """JSON values of every field."""
@@ -280,7 +288,9 @@ def batched_env_params(base: EnvParams, scenarios: Sequence[Scenario],
         return jax.tree_util.tree_map(lambda x: jnp.broadcast_to(jnp.asarray(x), (n,) + jnp.shape(x)), tree)
 
     act = stack(base.actuator)
-    act = dataclasses.replace(act, delay_ticks=jnp.asarray(ticks, act.delay_ticks.dtype))
+    loop = [act.torque_loop[i] if s.actuator is None else TORQUE_LOOPS[s.actuator] for i, s in enumerate(scenarios)]
+    act = dataclasses.replace(act, delay_ticks=jnp.asarray(ticks, act.delay_ticks.dtype),
+                              torque_loop=jnp.asarray(loop, act.torque_loop.dtype))
     sen = stack(base.sensor)
     for name, field in (("imu_noise_deg", "imu_orientation_noise_rad"), ("joint_noise_deg", "joint_noise_rad")):
         old = getattr(sen, field)

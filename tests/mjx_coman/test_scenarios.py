@@ -203,11 +203,22 @@ def test_delay_reaches_the_motor_boards_k_ticks_later():
     (dict(terrain="ice"), "ice"), (dict(terrain="rough:0"), "rough:0"), (dict(terrain="stairs:30"), "stairs:30"),
     (dict(terrain="rough:2:x"), "x"), (dict(imu_noise_deg=-3.0), "imu_noise_deg"),
     (dict(joint_noise_deg=float("inf")), "joint_noise_deg"), (dict(delay_ms=-1.0), "delay_ms"),
-    (dict(delay_ms=50.0), "delay_ms"), (dict(slope_deg="5"), "slope_deg"),
+    (dict(delay_ms=50.0), "delay_ms"), (dict(slope_deg="5"), "slope_deg"), (dict(actuator="hydraulic"), "hydraulic"),
 ])
 def test_bad_scenarios_raise_naming_the_value(kw, word):
     with pytest.raises(ValueError, match=word):
         sc.scenario_env_params(ro.walking_env_params(), sc.Scenario(**kw))
+
+
+def test_the_actuator_axis_picks_each_rows_torque_loop():
+    from mjx_coman.actuators import TORQUE_IDEAL, TORQUE_SEA
+
+    base = ro.plant_env_params("torque-ideal")
+    params, axes = sc.batched_env_params(base, [sc.Scenario(), sc.Scenario(actuator="sea"),
+                                                sc.Scenario(actuator="ideal", delay_ms=10.0)])
+    assert axes.actuator.torque_loop == 0
+    assert np.asarray(params.actuator.torque_loop).tolist() == [int(base.actuator.torque_loop), TORQUE_SEA, TORQUE_IDEAL]
+    assert int(sc.select(params, axes, 1).actuator.torque_loop) == TORQUE_SEA
 
 
 def test_one_batch_shares_one_terrain():

@@ -92,6 +92,10 @@ def test_scenario_rows_are_scenario_minor_and_part_of_the_identity():
     assert "scenario" not in base.to_dict()  # sweeps without scenarios keep their hashes
     assert cfg.hash() != base.hash()
     assert cfg.compiled_part().scenario == cfg.scenario  # a rollout finds its scenario from its index
+    act = SweepConfig(model="mjx", scenario=freeze_scenario({"actuator": ["ideal", "sea"]})).validate()
+    assert act.scenario == (("actuator", ("ideal", "sea")),) and act.n_scenarios == 2
+    with pytest.raises(GridError, match="actuator='hydraulic'"):
+        SweepConfig(model="mjx", scenario=freeze_scenario({"actuator": ["hydraulic"]})).validate()
     with pytest.raises(GridError, match="terrain takes one value"):
         SweepConfig(model="mjx", scenario=freeze_scenario({"terrain": ["flat", "rough:2"]})).validate()
     with pytest.raises(GridError, match="mjx only"):

@@ -70,6 +70,7 @@ def _results(out: Path) -> dict:
     (["map", "--model", "mjx", "--axis", "slope_deg=0,0"], "repeats"),
     (["map", "--model", "mjx", "--axis", "delay_ms=0,500"], "delay_ms"),
     (["map", "--model", "mjx", "--axis", "terrain=flat,bumpy"], "bumpy"),
+    (["map", "--model", "mjx", "--axis", "actuator=ideal,hydraulic"], "'hydraulic'"),
     (["map", "--model", "mjx", "--slope-deg", "5", "--axis", "slope_deg=0,5"], "both give slope_deg"),
     (["map", "--model", "mjx", "--imu-noise-deg", "1,3"], "one value"),
     (["map", "--model", "3lp", "--payload-kg", "1"], "--model mjx only"),
@@ -289,6 +290,8 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
     (["compare", "--model", "mjx", "--controllers", "dlqr", "--directions", "left,right", "--impulses", "1"],
      [("dlqr", "mjx", 2 * 2 * 2, 96)]),
     (["map", "--model", "mjx", "--directions", "4", "--phases", "2"], [("", "mjx", 4 * 2 * 41, 256)]),
+    (["compare", "--model", "mjx", "--controllers", "footstep-mpc", "--axis", "actuator=ideal,sea"],
+     [("footstep-mpc", "mjx", 2 * 2 * 8 * 2 * 3, 96)]),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
      [("", "mjx", 2 * 41, 256)]),
     # scenario axes: batched ones multiply the grid; each terrain is its own run (a scene)
