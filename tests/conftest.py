@@ -4,7 +4,8 @@ Under pytest-xdist (``-n 2 --dist loadgroup``, the README's test command) each t
 its module-scoped fixtures are built once; modules that share a session-scoped compilation share a group:
 the shared walk of every position-controlled controller (``tests/mjx_coman/conftest.py``; each torque-controlled
 family has its own), and the subprocesses that share JAX's
-persistent compilation cache (the walk command line and notebook 03; the studies command line and notebook 06).
+persistent compilation cache (the walk command line and notebook 03; the studies command line and notebook 06;
+the scorecard's agreement test and notebook 08).
 """
 
 import os
@@ -42,11 +43,12 @@ SHARED_GROUPS = {
     "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py"),
     "walk-subprocesses": ("test_walk_cli.py", "test_notebook_03.py"),
     "studies-subprocesses": ("test_studies_cli.py", "test_notebook_06.py"),
+    "side-by-side": ("test_scorecard.py", "test_notebook_08.py"),
 }
 
 
 # Groups that take a minute or more on 2 cores (``--durations``), longest first.
-LONGEST_FIRST = ("studies-subprocesses", "walk-subprocesses", "walks", "torque-walks-footstep-mpc",
+LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "walk-subprocesses", "walks", "torque-walks-footstep-mpc",
                  "torque-walks-wbc-stand", "tests/mjx_coman/test_env.py", "tests/sweeps/test_sweeps.py",
                  "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py", "tests/jaxlp/test_simulate.py",
                  "tests/mjx_coman/test_notebook_02.py", "tests/mjx_coman/test_sensors.py")

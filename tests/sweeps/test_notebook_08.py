@@ -1,6 +1,7 @@
 """Execute notebooks/08_side_by_side.ipynb at the small size: a live comparison of time projection and footstep
-MPC on a tiny grid (2 directions x 1 phase x 1 impulse, twice), its scorecard and combined figure, the stored
-tuning runs, and one rendered walk."""
+MPC on a tiny grid (2 directions x 1 phase x 1 impulse, twice, 4-step walks), its scorecard and combined
+figure, the stored tuning runs, and one rendered walk. The compare run and the walk have the shapes of
+tests/sweeps/test_scorecard.py's agreement test: one compilation each in the session's cache."""
 
 import json
 import re

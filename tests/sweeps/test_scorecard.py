@@ -70,7 +70,8 @@ def test_tolerated_terrain_counts_heights_and_stops_at_the_first_failure():
 def test_the_scorecard_agrees_with_the_controllers_own_walk_under_the_same_push(tmp_path, capsys):
     """One compare run (time projection, 6 N s left and right at a quarter of walking step 1, 0.1 m/s) against
     ``python -m mjx_coman.walk`` with the same push: the same verdict in each direction, and the two directions
-    differ (the full comparison: left recovered, right fell), so agreement is not vacuous."""
+    differ (the full comparison: left recovered, right fell), so agreement is not vacuous. The compare run and the
+    walk have the shapes of notebook 08's small run: one compilation each in the session's cache."""
     import json
 
     from mjx_coman import walk
@@ -78,7 +79,8 @@ def test_the_scorecard_agrees_with_the_controllers_own_walk_under_the_same_push(
 
     out = tmp_path / "cmp"
     assert cli.main(["compare", "--model", "mjx", "--controllers", "time-projection", "--directions", "left,right",
-                     "--phases", "0.25", "--impulses", "6", "--n-steps", "4", "--repeats", "1", "--no-progress",
+                     "--phases", "0.25", "--impulses", "6", "--n-steps", "4", "--repeats", "2", "--chunk", "4",
+                     "--no-progress",
                      "--out", str(out)]) == 0
     card = json.loads((out / "scorecard.json").read_text())
     swept = {p["direction"]: p["largest_recovered_impulse_ns"] == 6.0 for p in card["rows"][0]["per_direction"]}
