@@ -8,7 +8,9 @@
 The model (:mod:`sweeps.models`) poses the problem (:class:`sweeps.models.TuneProblem`: unconstrained
 coordinates, a loss and its gradient on fixed training and held-out scenarios); this module only
 runs the optimiser on it: an optax chain (NaN gradients zeroed, then Adam by default), keeping the
-iterate of lowest training loss. Writes to ``--out`` (each file atomically): ``tuned.json`` (the
+iterate with the fewest training falls and, among those, the lowest training loss (a walk frozen by a fall
+can sway less than one that recovers, so the loss alone once kept constants that made both footstep-MPC
+training pushes fall). Writes to ``--out`` (each file atomically): ``tuned.json`` (the
 constants and the controller overrides before and after, training and held-out loss before and after,
 the history, the command) and ``loss.png``; with ``--holdout`` (default) it then runs held-out sweeps
 of the seed's and the tuned overrides (:mod:`sweeps.holdout`) on the same model, or on
@@ -143,7 +145,7 @@ def tune(config: TuneConfig, progress: bool = True) -> dict:
         opt = _optimizer(config)
         state = opt.init(raw)
         history = dict(loss=[], fell_rate=[], grad_norm=[], step_s=[])
-        best = (np.inf, raw, -1)
+        best = ((np.inf, np.inf), raw, -1)  # (training falls, loss): a walk frozen by a fall can sway less
         bar = _bar(config.steps, progress)
         for step in range(config.steps + 1):  # the last pass only evaluates the final iterate
             t0 = time.perf_counter()
@@ -155,8 +157,9 @@ def tune(config: TuneConfig, progress: bool = True) -> dict:
                 if k != "fell":
                     history.setdefault(k, []).append(float(np.mean(v)))
             history["grad_norm"].append(float(optax.tree.norm(grad)))
-            if np.isfinite(loss) and loss < best[0]:
-                best = (loss, raw, step)
+            rank = (history["fell_rate"][-1], loss)
+            if np.isfinite(loss) and rank < best[0]:
+                best = (rank, raw, step)
             if step == config.steps:
                 break
             updates, state = opt.update(grad, state, raw)
@@ -174,7 +177,7 @@ def tune(config: TuneConfig, progress: bool = True) -> dict:
         plant=config.plant, controller=config.controller, config=_jsonable(dataclasses.asdict(config)),
         constants_before=before, constants_after=after,
         overrides_before=_jsonable(overrides_before), overrides_after=_jsonable(overrides_after),
-        loss_before=history["loss"][0], loss_after=float(best[0]), best_step=int(best[2]),
+        loss_before=history["loss"][0], loss_after=float(best[0][1]), best_step=int(best[2]),
         fell_rate_before=history["fell_rate"][0], fell_rate_after=history["fell_rate"][best[2]],
         heldout_loss_before=float(held_before), heldout_loss_after=float(held_after),
         heldout_fell_rate_before=float(np.mean(held_terms_before["fell"])),

@@ -122,6 +122,29 @@ def test_bad_arguments_exit_2_with_one_line(args, word):
     assert len(lines) == 1 and word in lines[0]
 
 
+def test_the_kept_iterate_falls_least_before_it_sways_least(monkeypatch):
+    """A problem whose loss keeps falling while the iterates past 0.5 fall on both training pushes (as a walk
+    frozen by a fall sways less): the tuner keeps the last iterate that did not fall, not the lowest loss."""
+    import jax.numpy as jnp
+
+    from sweeps import models
+    from sweeps.models import Model, TuneProblem
+
+    def value_and_grad(raw, split):
+        x = raw["x"]
+        fell = jnp.full(2, x > 0.5)
+        return ((1.0 - x) ** 2, dict(fell=fell)), dict(x=-2.0 * (1.0 - x))
+
+    problem = TuneProblem(raw0=dict(x=jnp.asarray(0.0)), value=lambda raw, split: value_and_grad(raw, split)[0],
+                          value_and_grad=value_and_grad, constants=lambda raw: dict(x=float(raw["x"])),
+                          overrides=lambda raw: dict(x=float(raw["x"])), info={})
+    fake = Model(None, lambda config: 1, tune_problem=lambda tc: problem)
+    monkeypatch.setattr(models, "get_model", lambda name: fake)
+    rec = tune.tune(tune.TuneConfig(steps=12, learning_rate=0.1, optimizer="sgd"), progress=False)
+    assert min(rec["history"]["loss"]) < rec["loss_after"]  # a lower loss was seen, on an iterate that fell
+    assert rec["fell_rate_after"] == 0.0 and rec["constants_after"]["x"] <= 0.5
+
+
 def test_each_walking_controller_has_settings_to_tune_and_a_default_plant():
     from mjx_coman import controllers
 
