@@ -12,9 +12,9 @@ One row per controller and scenario (every value of the batched scenario axes, a
   walking before the push; the peak absolute knee torque (models that record effort, as ``mjx``);
 * env-steps per second of the controller's sweep (with ``rate_includes_compile``).
 
-Per controller, ``tolerated``: for each scenario axis of several values (and the terrain), the values whose
-scenarios recovered at least :data:`TOLERATED_SHARE` of their pushes, and the largest magnitude up to which
-every value did (``max_tolerated``; terrain by its height in cm, actuator 0 ideal, 1 series-elastic).
+Per controller, ``tolerated``: for each scenario axis of several values (and the terrain), one axis at a time
+with the others nominal, the values whose scenario recovered at least :data:`TOLERATED_SHARE` of its pushes,
+and the largest magnitude up to which every value did (``max_tolerated``; terrain by its height in cm, actuator 0 ideal, 1 series-elastic).
 """
 
 from __future__ import annotations
@@ -88,17 +88,20 @@ def _magnitude(axis: str, value) -> float:
 
 
 def tolerated(rows: list[dict]) -> dict:
-    """Per scenario axis with several values among ``rows`` (one controller's): the values whose every
-    scenario recovered at least :data:`TOLERATED_SHARE` of its pushes, and the largest magnitude up to
-    which every value did (``None`` if the smallest did not)."""
+    """Per scenario axis with several values among ``rows`` (one controller's), one axis at a time (every other
+    axis at its nominal value, the smallest in magnitude): the values whose scenario recovered at least
+    :data:`TOLERATED_SHARE` of its pushes, and the largest magnitude up to which every value did (``None`` if
+    the smallest did not)."""
     out = {}
     axes = sorted({a for r in rows for a in r["scenario"]})
+    order = {a: sorted({r["scenario"][a] for r in rows}, key=lambda v: (_magnitude(a, v), str(v))) for a in axes}
     for a in axes:
-        values = sorted({r["scenario"][a] for r in rows}, key=lambda v: (_magnitude(a, v), str(v)))
+        values = order[a]
         if len(values) < 2:
             continue
+        nominal = [r for r in rows if all(r["scenario"][b] == order[b][0] for b in axes if b != a)]
         good = [v for v in values if all(r["recovery_rate"] >= TOLERATED_SHARE
-                                         for r in rows if r["scenario"][a] == v)]
+                                         for r in nominal if r["scenario"][a] == v)]
         best = None
         for v in values:  # by magnitude: stop at the first that fails
             if v not in good:

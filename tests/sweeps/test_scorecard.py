@@ -67,6 +67,16 @@ def test_tolerated_terrain_counts_heights_and_stops_at_the_first_failure():
     assert tolerated([row("flat", 0.9)]) == {}
 
 
+def test_tolerance_is_one_axis_at_a_time_from_the_nominal_scenario():
+    """An actuator that fails everywhere does not hide the slopes and delays tolerated on the nominal one."""
+    rows = [dict(scenario=dict(actuator=act, slope_deg=s, terrain="flat"),
+                 recovery_rate=0.0 if act == "sea" or s == 10.0 else 1.0)
+            for act in ("ideal", "sea") for s in (0.0, 5.0, 10.0)]
+    got = tolerated(rows)
+    assert got["slope_deg"] == dict(tolerated_values=[0.0, 5.0], max_tolerated=5.0)
+    assert got["actuator"] == dict(tolerated_values=["ideal"], max_tolerated=0.0)
+
+
 def test_the_scorecard_agrees_with_the_controllers_own_walk_under_the_same_push(tmp_path, capsys):
     """One compare run (time projection, 6 N s left and right at a quarter of walking step 1, 0.1 m/s) against
     ``python -m mjx_coman.walk`` with the same push: the same verdict in each direction, and the two directions
