@@ -302,7 +302,8 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
      [(f"terrain-{t}/{c}", "mjx", 2 * 8 * 4, 96) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
 ])
 def test_presets_and_overrides(argv, expected, tmp_path):
-    from sweeps.cli import build_parser, plan_runs
+    from sweeps.cli import build_parser
+    from sweeps.plan import plan_runs
 
     plans = plan_runs(build_parser().parse_args([*argv, "--out", str(tmp_path)]))
     got = [(str(out.relative_to(tmp_path)).replace(".", ""), cfg.model, cfg.n_rollouts, cfg.chunk)
