@@ -238,7 +238,9 @@ def format_table(table: dict) -> str:
         for d in t["per_direction"]:
             best = [r["max_recovered_impulse_ns"] for r in d["per_phase"]]
             weakest.append(f"{d['direction']} {min(v or 0.0 for v in best):g}")
-        lines.append(f"  held-out {t['model']} grid, {name} constants: {report.percent(t['recovery_rate'])} of {t['rollouts']} "
+        finite = t["rollouts"] - t["nan"]
+        count = f"{t['rollouts']}" if not t["nan"] else f"{finite} finite ({t['nan']} of {t['rollouts']} non-finite)"
+        lines.append(f"  held-out {t['model']} grid, {name} constants: {report.percent(t['recovery_rate'])} of {count} "
                      f"recovered; {t['settled']} pushed walks settled, after {steps} steps on average; "
                      f"largest impulse recovered at the weakest phase (N s): {', '.join(weakest)}")
     if "paired" in table:
@@ -246,7 +248,9 @@ def format_table(table: dict) -> str:
         iv = lambda n: "[{:.1%}, {:.1%}]".format(*p[f"{n}_interval"])  # noqa: E731
         lines.append(f"  paired over {p['pairs']} walks: seed {p['seed_rate']:.1%} {iv('seed')}, tuned "
                      f"{p['tuned_rate']:.1%} {iv('tuned')} (95 % Wilson); recovered by seed only {p['seed_only']}, "
-                     f"by tuned only {p['tuned_only']}: {p['verdict']}")
+                     f"by tuned only {p['tuned_only']}"
+                     f"{' (a non-finite walk counts as not recovered)' if any(table[n]['nan'] for n in SETS) else ''}"
+                     f": {p['verdict']}")
     return "\n".join(lines)
 
 

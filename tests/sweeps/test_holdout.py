@@ -39,6 +39,16 @@ def test_the_sets_are_compared_pair_by_pair(fake_run):
     assert "paired over 8 walks" in holdout.format_table(dict(t, seed=dict(t["seed"], wall_s=1.0)))
 
 
+def test_non_finite_walks_are_named_in_the_table(fake_run):
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0)).validate()
+    seed, tuned = fake_run(cfg, lambda g, i: 2.0), fake_run(cfg, lambda g, i: 2.0)
+    tuned.results["nan"] = np.arange(4) < 3  # three of the four walks blew up
+    t = holdout.compare({"seed": [seed], "tuned": [tuned]})
+    text = holdout.format_table(t)
+    assert "of 1 finite (3 of 4 non-finite)" in text and "non-finite walk counts as not recovered" in text
+    assert t["paired"]["tuned_rate"] == 0.25 and t["tuned"]["recovery_rate"] == 1.0
+
+
 def test_flat_and_record_files_give_the_overrides(tmp_path):
     (tmp_path / "t.json").write_text(json.dumps(RECORD))
     assert holdout.load_overrides(tmp_path / "t.json") == RECORD["overrides_after"]
