@@ -210,7 +210,8 @@ class WalkResult(NamedTuple):
     Attributes:
         fell: it fell (or went non-finite).
         fall_time_s: when (``inf`` if it did not).
-        nan: the state went non-finite (also counted in ``fell``).
+        nan: the simulation, the command or the common telemetry went non-finite (also counted in ``fell``;
+            ``Telemetry.extra`` is left out: a failed solve may report infinite residuals there).
         solve_failed: the controller reported a failed solve (``Telemetry.ok`` False; also counted in ``fell``).
         touchdowns: feet landings before any fall (:class:`mjx_coman.ground_truth.Touchdowns`).
         steps_to_recover: see :mod:`mjx_coman.ground_truth` (0 unpushed, -1 fell or never settled).
@@ -355,7 +356,7 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
         cs, cmd, tel = controller.step(config, c.ctrl, obs)
         cmd = cmd._replace(torso_force_n=_push_force(push, time, dt).astype(f))
         e = env_mod.step(env_params, c.env, cmd)
-        finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, tel))
+        finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, cmd, tel._replace(extra=())))
         failed = jnp.zeros((), bool) if tel.ok is None else ~jnp.asarray(tel.ok, bool)
         bad = ~finite | failed | gt.fallen(e.data, judge)
         stop = c.fallen | bad

@@ -247,7 +247,8 @@ def _describe(summary: dict, out: Path) -> str:
     return (
         f"{summary['model']} / {summary['controller']}: {summary['direction']} {summary['push_duration_s']:g} s pushes "
         f"during step {summary['push_step']}: {percent(summary['recovery_rate'])} of {summary['rollouts']} rollouts "
-        f"recovered ({summary['fell']} fell, {summary['nan']} NaN, left out of the rate)\n"
+        f"recovered ({summary['fell']} fell, {summary.get('solve_failed', 0)} failed solves, {summary['nan']} NaN, "
+        f"left out of the rate)\n"
         f"largest recovered impulse (N s) per phase of the step"
         + (" (recovered in every scenario; each scenario below)" if summary.get("per_scenario") else "")
         + f": {best}\n{verdict}\n"

@@ -30,8 +30,9 @@ import numpy as np
 from sweeps.axes import (DIRECTIONS_RAD, MAX_AXIS, GridError, direction_rad, parse_directions,  # noqa: F401
                          parse_impulses, parse_phases)
 
-RESULTS_VERSION = 3  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not;
-# 3 adds the MJX walks' knee torques and cost of transport
+RESULTS_VERSION = 4  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not;
+# 3 adds the MJX walks' knee torques and cost of transport; 4 records a controller's failed solve as such
+# (``solve_failed``), where 3 called it non-finite when the solve's diagnostics were infinite
 
 
 # scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config

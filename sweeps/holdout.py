@@ -176,7 +176,7 @@ def load_runs(path) -> dict:
         for tag in tags:
             cfg = SweepConfig.from_dict(json.loads(str(z[f"{tag}/config"])))
             res = {k.rsplit("/", 1)[1]: z[k] for k in z.files if k.rsplit("/", 1)[0] == tag and not k.endswith("/config")}
-            res["reason"] = failure_reason(res["fell"], res["nan"])
+            res["reason"] = failure_reason(res["fell"], res["nan"], res.get("solve_failed"))
             runs.setdefault(tag.split("/")[0], []).append(SweepRun(cfg, res, {}))
     return runs
 

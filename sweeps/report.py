@@ -1,8 +1,10 @@
 """Sweep outputs: results.npz, results.csv, basin.png and summary.json; the controller comparison.
 
 One meaning per word, in rows and summaries alike: ``nan`` a rollout that
-went non-finite, ``fell`` a finite rollout that fell, recovered neither
-(``reason`` is ``"nan"``, ``"fell"`` or ``""``). NaN rollouts are counted
+went non-finite, ``fell`` a finite rollout that fell or whose controller's
+solve failed (which ends a walk), recovered neither (``reason`` is
+``"nan"``, ``"solve_failed"``, ``"fell"`` or ``""``; the summaries count
+``fell`` and ``solve_failed`` apart). NaN rollouts are counted
 (``nan``) and left out of every statistic: rates are over the finite
 rollouts, maxima and medians over the recovered ones.
 
@@ -86,6 +88,12 @@ def blocks(config: SweepConfig, results: dict) -> list[tuple[SweepConfig, dict]]
     return [(config.for_direction(d), direction_rows(config, results, d)) for d in range(len(config.directions))]
 
 
+def outcome_counts(res: dict) -> dict:
+    """``{fell, solve_failed, nan}``: rollouts per failure ``reason`` (falls without the failed solves)."""
+    return {k: int(np.sum(res["reason"] == r)) for k, r in (("fell", "fell"), ("solve_failed", "solve_failed"),
+                                                            ("nan", "nan"))}
+
+
 def recovered(results: dict) -> np.ndarray:
     """Rollouts that neither fell nor went numerically bad."""
     return ~np.asarray(results["fell"], bool) & ~np.asarray(results["nan"], bool)
@@ -152,7 +160,7 @@ def _scenario_summary(cfg: SweepConfig, res: dict) -> list[dict]:
         ok = recovered(sub)
         cyc = _cycle_stats(sub, ok)
         out.append(dict(scenario_index=s, scenario=values, recovery_rate=recovery_rate(sub),
-                        fell=int(np.sum(sub["reason"] == "fell")), nan=int(np.sum(sub["reason"] == "nan")),
+                        **outcome_counts(sub),
                         **cyc, per_phase=per_phase(cfg, sub)))
     return out
 
@@ -162,8 +170,7 @@ def _direction_summary(cfg: SweepConfig, res: dict) -> dict:
     ok = recovered(res)
     s2r = _steps_to_recover(res, ok)
     return dict(direction=cfg.direction, direction_deg=float(np.degrees(direction_rad(cfg.direction))),
-                recovery_rate=recovery_rate(res), fell=int(np.sum(res["reason"] == "fell")),
-                nan=int(np.sum(res["reason"] == "nan")),
+                recovery_rate=recovery_rate(res), **outcome_counts(res),
                 median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
                 per_phase=phase_rows(cfg, res),
                 **({} if not cfg.scenario else dict(per_scenario=_scenario_summary(cfg, res))))
@@ -193,7 +200,7 @@ def summarize(run: SweepRun) -> dict:
         direction=", ".join(cfg.direction_list), directions=list(cfg.direction_list),
         push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
         rollouts=int(cfg.n_rollouts), recovery_rate=recovery_rate(res),
-        fell=int(np.sum(res["reason"] == "fell")), nan=int(np.sum(res["reason"] == "nan")),
+        **outcome_counts(res),
         median_steps_to_recover=float(np.median(s2r)) if s2r.size else None,
         max_abs_footstep_adjustment_m=_max_or_none(res["max_abs_footstep_adjustment_m"][ok]),
         **cycle,

@@ -226,9 +226,11 @@ def _clean(out: dict) -> dict:
     return out
 
 
-def failure_reason(fell: np.ndarray, nan: np.ndarray) -> np.ndarray:
-    """``"nan"`` (numerically bad), ``"fell"`` or ``""`` (recovered) per rollout."""
-    return np.where(nan, "nan", np.where(fell, "fell", ""))
+def failure_reason(fell: np.ndarray, nan: np.ndarray, solve_failed: np.ndarray | None = None) -> np.ndarray:
+    """``"nan"`` (numerically bad), ``"solve_failed"`` (the controller's solve failed, which ends the walk:
+    ``fell`` is set too), ``"fell"`` or ``""`` (recovered) per rollout."""
+    failed = np.zeros(np.shape(fell), bool) if solve_failed is None else np.asarray(solve_failed, bool)
+    return np.where(nan, "nan", np.where(failed & fell, "solve_failed", np.where(fell, "fell", "")))
 
 
 def _broadcast_from_0(x: np.ndarray) -> np.ndarray:
@@ -356,5 +358,5 @@ def _assemble(inputs, chunks: list, n: int, config: SweepConfig | None = None) -
     if config is not None and config.scenario:
         res["scenario_index"] = np.asarray(inputs.scenario_index, np.int32)
         res.update(scenario_columns(config, inputs.scenario_index))
-    res["reason"] = failure_reason(res["fell"], res["nan"])
+    res["reason"] = failure_reason(res["fell"], res["nan"], res.get("solve_failed"))
     return res

@@ -131,5 +131,5 @@ def describe(summary: dict) -> str:
         best = ", ".join(f"{p['phase']:.2f}: " + ("-" if p["max_recovered_impulse_ns"] is None
                                                   else f"{p['max_recovered_impulse_ns']:g}") for p in r["per_phase"])
         lines.append(f"  scenario {r['scenario_index']} ({vals}): {percent(r['recovery_rate'])} recovered, "
-                     f"{r['fell']} fell, {r['nan']} NaN; largest recovered impulse (N s) per phase: {best}")
+                     f"{r['fell']} fell, {r.get('solve_failed', 0)} failed solves, {r['nan']} NaN; largest recovered impulse (N s) per phase: {best}")
     return "\n".join(lines)

@@ -7,7 +7,8 @@ One row per controller and scenario (every value of the batched scenario axes, a
   and robot) and a 95 % percentile bootstrap interval over those runs (``None`` for one run);
 * the share of pushes recovered, of all of them: a walk that went non-finite did not recover (it is counted
   in ``nan`` too; the sweep's own summaries leave such walks out of their rates), and the median steps to
-  recover of those that settled;
+  recover of those that settled; ``fell`` counts falls, ``solve_failed`` walks ended by the controller's
+  failed solve;
 * mean forward speed of the recovered walks; mean absolute knee torque and median cost of transport while
   walking before the push; the peak absolute knee torque (models that record effort, as ``mjx``);
 * env-steps per second of the controller's sweep (with ``rate_includes_compile``).
@@ -22,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from sweeps.grid import SweepConfig, direction_rad
-from sweeps.report import direction_rows, recovered, scenario_rows
+from sweeps.report import direction_rows, outcome_counts, recovered, scenario_rows
 from sweeps.stats import bootstrap_interval
 from sweeps.runner import SweepRun
 
@@ -66,8 +67,7 @@ def scenario_row(run: SweepRun, s: int) -> dict:
     steps = np.asarray(res_s["steps_to_recover"])[ok & pushed]
     row = dict(controller=cfg.controller, scenario=dict(cfg.scenarios()[s], terrain=cfg.terrain),
                rollouts=int(ok.size), repeats=cfg.repeats, per_direction=per_dir,
-               recovery_rate=float(np.mean(ok)), fell=int(np.sum(res_s["reason"] == "fell")),
-               nan=int(np.sum(res_s["reason"] == "nan")),
+               recovery_rate=float(np.mean(ok)), **outcome_counts(res_s),
                median_steps_to_recover=_stat(np.median, steps[steps >= 0]),
                mean_speed_mps=_stat(np.mean, res_s["mean_speed_mps"][ok]) if "mean_speed_mps" in res_s else None)
     for k in EFFORT:
@@ -132,7 +132,8 @@ def _num(v, fmt: str = "{:.2f}") -> str:
 def markdown(card: dict) -> str:
     """scorecard.md: one table row per controller and scenario, then the tolerated scenario values."""
     dirs = card["directions"]
-    head = ["controller", "scenario", *(f"{d}" for d in dirs), "recovered", "fell", "NaN", "median steps",
+    head = ["controller", "scenario", *(f"{d}" for d in dirs), "recovered", "fell", "solve failed", "NaN",
+            "median steps",
             "speed m/s", "knee N m", "peak knee N m", "CoT", "env-steps/s"]
     lines = [f"Largest recovered impulse (N s) per push direction (degrees from forward, + left), "
              f"{card['push_duration_s']:g} s pushes at {card['speed_mps']:g} m/s"
@@ -146,7 +147,7 @@ def markdown(card: dict) -> str:
             cells.append(f"{p['largest_recovered_impulse_ns']:.1f}" + (f" [{iv[0]:.1f}, {iv[1]:.1f}]" if iv else ""))
         rate = r["recovery_rate"]
         lines.append("| " + " | ".join([
-            r["controller"], scen, *cells, f"{rate:.0%}", str(r["fell"]), str(r["nan"]),
+            r["controller"], scen, *cells, f"{rate:.0%}", str(r["fell"]), str(r.get("solve_failed", 0)), str(r["nan"]),
             _num(r["median_steps_to_recover"], "{:g}"), _num(r["mean_speed_mps"], "{:.3f}"),
             _num(r.get("mean_abs_knee_torque_nm")), _num(r.get("peak_abs_knee_torque_nm"), "{:.1f}"),
             _num(r.get("cost_of_transport")), _num(r["env_steps_per_s"], "{:.0f}")]) + " |")

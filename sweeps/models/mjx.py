@@ -266,7 +266,7 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     return RolloutOutputs(
         fell=r.fell, steps_to_recover=r.steps_to_recover.astype(jnp.int32),
         max_abs_footstep_adjustment_m=r.max_abs_footstep_adjustment_m, fall_time_s=r.fall_time_s, nan=r.nan,
-        extra=dict(touchdowns=r.touchdowns, mean_speed_mps=r.mean_speed_mps,
+        extra=dict(solve_failed=r.solve_failed & ~r.nan, touchdowns=r.touchdowns, mean_speed_mps=r.mean_speed_mps,
                    cycle_forward_mps=r.cycle_velocity_mps[0], cycle_lateral_mps=r.cycle_velocity_mps[1], **eff),
     )
 

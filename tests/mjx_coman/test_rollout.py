@@ -245,3 +245,33 @@ def test_reverse_mode_through_a_wbc_stand_rollout_matches_central_differences():
     assert rev < 0  # stiffer CoM task, less sway
     assert rev == pytest.approx(fwd, rel=1e-6)
     assert any(d == pytest.approx(rev, rel=1e-2) for d in fd.values()), (rev, fd)
+
+
+class _FailsAfter:
+    """A controller that reports a failed solve (``ok`` False, infinite diagnostics in ``extra``) from
+    ``fail_s`` on, with the wrapped controller's finite command."""
+
+    privileged = False
+
+    def __init__(self, base, fail_s):
+        self.base, self.fail_s = base, fail_s
+
+    def gait(self, config):
+        return self.base.gait(config)
+
+    def init(self, config, env_params, key):
+        return self.base.init(config, env_params, key)
+
+    def step(self, config, state, obs):
+        state, cmd, tel = self.base.step(config, state, obs)
+        fail = obs.time_s >= self.fail_s
+        return state, cmd, tel._replace(extra=jnp.where(fail, jnp.inf, 0.0), ok=~fail)
+
+
+def test_a_failed_solve_is_recorded_as_one_not_as_non_finite(walking_env):
+    ctrl, config = controllers.load("open-loop")
+    env_params = walking_env
+    res = jax.jit(lambda: ro.walk(_FailsAfter(ctrl.core(), 0.1), config, env_params, ro.no_push(),
+                                  jax.random.PRNGKey(0), ro.WalkSpec(seconds=0.2)))()
+    assert bool(res.fell) and bool(res.solve_failed) and not bool(res.nan)
+    assert abs(float(res.fall_time_s) - 0.1 - ctrl.gait(config).control_period_s) < 1e-5  # the failing tick's end

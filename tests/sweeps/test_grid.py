@@ -70,7 +70,7 @@ def test_controller_overrides_are_part_of_the_identity_and_round_trip():
     assert len({base.hash(), tuned.hash(), base.with_overrides({"zeta": 0.3}).hash()}) == 3
     assert tuned.compiled_part().overrides() == {"deadzone": (0.004, 0.004, 0.04, 0.04), "zeta": 0.2}
     assert SweepConfig.from_dict(tuned.to_dict()) == tuned
-    assert base.to_dict()["results_version"] == 3  # knee torques and cost of transport: older folders are other sweeps
+    assert base.to_dict()["results_version"] == 4  # failed solves recorded as such: older folders are other sweeps
 
 
 def test_scenario_rows_are_scenario_minor_and_part_of_the_identity():

@@ -25,6 +25,25 @@ def fake_model(monkeypatch):
     monkeypatch.setitem(models.MODELS, "fake", models.Model(_fake, lambda c: 100))
 
 
+def _fake_solver(config, inp, aux):
+    """Falls above 2 N s; the falls above 4 N s are the controller's failed solves."""
+    fell = inp.impulse_ns > 2.0
+    return models.RolloutOutputs(fell=fell, steps_to_recover=jnp.int32(2), max_abs_footstep_adjustment_m=jnp.float32(0.0),
+                                 fall_time_s=jnp.float32(jnp.inf), nan=jnp.zeros((), bool),
+                                 extra=dict(solve_failed=fell & (inp.impulse_ns > 4.0)))
+
+
+def test_failed_solves_are_their_own_reason_and_count(tmp_path, monkeypatch):
+    monkeypatch.setitem(models.MODELS, "fake", models.Model(_fake_solver, lambda c: 100))
+    cfg = SweepConfig(model="fake", phases=(0.0,), impulses_ns=(1.0, 3.0, 5.0, 7.0), chunk=4)
+    run = run_sweep(cfg, tmp_path, progress=False)
+    assert list(run.results["reason"]) == ["", "fell", "solve_failed", "solve_failed"]
+    summary = report.write_outputs(tmp_path, run)
+    assert (summary["fell"], summary["solve_failed"], summary["nan"]) == (1, 2, 0)
+    assert summary["recovery_rate"] == pytest.approx(0.25)  # a failed solve did not recover
+    assert "solve_failed" in (tmp_path / "results.csv").read_text().splitlines()[0]
+
+
 def test_nan_rollouts_are_failures_with_a_reason_not_statistics(tmp_path, fake_model):
     cfg = SweepConfig(model="fake", phases=(0.0, 0.5), impulses_ns=(0.0, 1.0, 3.0, 5.0, 7.0), chunk=3)
     run = run_sweep(cfg, tmp_path, progress=False)
