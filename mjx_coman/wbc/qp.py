@@ -21,6 +21,13 @@ forces ~100 N per unit, torques ~10 N m per unit, accelerations in SI.
 With ``fixed_upper_body`` (a Python bool, static; seed 001 keeps waist and arms still) the 11 waist and
 arm accelerations are not unknowns but given (``upper_acc``, e.g. :func:`mjx_coman.wbc.tasks.joint_pd`
 towards their reference); their torques still follow from the same affine map and are limited.
+
+With ``contact_slack_weight`` w (static presence) 12 more unknowns ``e`` (m/s^2, rad/s^2) relax the stance
+rows to ``J_sole qdd + Jdot qdot = e`` at a cost ``w |e|^2`` (a lifted foot's slack has no row and is held
+at 0 by its cost). The hard problem can be infeasible: a foot declared in stance at its scheduled time
+while the torque bounds or the friction pyramid cannot hold it still; the relaxed one always has a solution
+(zero forces, ``tau = 0``, the stance feet accelerating with the free-falling body) and equals the hard one
+where that is feasible, up to ``O(1 / w)``.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from mjx_coman.wbc.tasks import Task
 FORCE_SCALE_N = 100.0
 TORQUE_SCALE_NM = 10.0
 DESIGN_FRICTION = 0.7  # below the model's 1.0
+N_SLACK = 12  # stance-row slacks (6 per foot) with contact_slack_weight
 
 
 class QP(NamedTuple):
@@ -71,9 +79,10 @@ def free_joints(nv: int, fixed_upper_body: bool) -> np.ndarray:
     return np.arange(N_BASE + LEG_JOINTS if fixed_upper_body else nv)
 
 
-def problem_size(nv: int = 29, fixed_upper_body: bool = False, n_faces: int = 4) -> dict[str, int]:
+def problem_size(nv: int = 29, fixed_upper_body: bool = False, n_faces: int = 4,
+                 contact_slack: bool = False) -> dict[str, int]:
     """``{variables, equalities, inequalities}`` of the QP (static)."""
-    n = len(free_joints(nv, fixed_upper_body)) + N_FORCES
+    n = len(free_joints(nv, fixed_upper_body)) + N_FORCES + (N_SLACK if contact_slack else 0)
     return dict(variables=n, equalities=N_BASE + 12, inequalities=2 * (nv - N_BASE) + 8 * (n_faces + 1))
 
 
@@ -90,7 +99,7 @@ def _task_rows(task: Task, qdd_map, qdd_offset, force_map):
 
 def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_max_nm, *,
              friction_coeff=DESIGN_FRICTION, min_normal_force_n=0.0, hessian_eps=1e-6,
-             fixed_upper_body: bool = False, upper_acc=None, n_faces: int = 4) -> QP:
+             fixed_upper_body: bool = False, upper_acc=None, n_faces: int = 4, contact_slack_weight=None) -> QP:
     """Assemble the whole-body QP of one state (pure; vmap it for a batch).
 
     Args:
@@ -103,6 +112,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         hessian_eps: added to Q's diagonal.
         fixed_upper_body: static; waist and arm accelerations given by ``upper_acc`` (11,).
         n_faces: static number of pyramid faces (>= 4).
+        contact_slack_weight: ``None`` (hard stance rows) or the weight of the stance-row slacks (module
+            docstring), per (m/s^2)^2.
 
     Raises:
         ValueError: wrong plant shapes, no tasks, or ``upper_acc`` given or missing against
@@ -119,12 +130,13 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     dt = plant.mass.dtype
     free = free_joints(nv, fixed_upper_body)
     n_q = len(free)
-    n = n_q + N_FORCES
+    n_f = n_q + N_FORCES
+    n = n_f + (0 if contact_slack_weight is None else N_SLACK)
     qdd_map = jnp.zeros((nv, n), dt).at[free, free].set(1.0)
     qdd_offset = jnp.zeros(nv, dt)
     if fixed_upper_body:
         qdd_offset = qdd_offset.at[n_q:].set(jnp.broadcast_to(jnp.asarray(upper_acc, dt), (nv - n_q,)))
-    force_map = jnp.zeros((N_FORCES, n), dt).at[:, n_q:].set(FORCE_SCALE_N * jnp.eye(N_FORCES, dtype=dt))
+    force_map = jnp.zeros((N_FORCES, n), dt).at[:, n_q:n_f].set(FORCE_SCALE_N * jnp.eye(N_FORCES, dtype=dt))
 
     # dynamics (seed 001 eq. 1): M qdd + h - passive - J_c^T (mask f) = S^T tau
     h_eff = plant.bias - plant.passive
@@ -138,6 +150,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     c_rhs = c_rhs - c_qdd @ qdd_offset
     stance = jnp.repeat(jnp.asarray(contact_mask), 6) > 0.5
     c_scale = jnp.where(stance, 1.0, FORCE_SCALE_N).astype(dt)  # stance rows in SI, lifted ones in N
+    if contact_slack_weight is not None:  # stance rows: J qdd - e = -Jdot qdot
+        c_rows = c_rows.at[:, n_f:].set(-jnp.diag(stance.astype(dt)))
     A = jnp.concatenate([dyn[:N_BASE] / FORCE_SCALE_N, c_rows / c_scale[:, None]])
     b = jnp.concatenate([-dyn0[:N_BASE] / FORCE_SCALE_N, c_rhs / c_scale])
     eq_scale = jnp.concatenate([jnp.full(N_BASE, FORCE_SCALE_N, dt), c_scale])
@@ -151,6 +165,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     ineq_scale = jnp.concatenate([jnp.full(2 * nu, TORQUE_SCALE_NM, dt), jnp.full(fr.shape[0], FORCE_SCALE_N, dt)])
 
     Q = hessian_eps * jnp.eye(n, dtype=dt)
+    if contact_slack_weight is not None:
+        Q = Q.at[n_f:, n_f:].add(2.0 * jnp.asarray(contact_slack_weight, dt) * jnp.eye(N_SLACK, dtype=dt))
     q = jnp.zeros(n, dt)
     for task in tasks:
         rows, target = _task_rows(task, qdd_map, qdd_offset, force_map)

@@ -36,6 +36,8 @@ SETTINGS = (
     Setting("fixed_upper_body", True, "waist and arms held by a joint PD outside the QP (seed 001)"),
     Setting("friction_coeff", 0.7, "design friction coefficient of the pyramids and the planner's bound"),
     Setting("startup_s", 0.05, "torques ramp in linearly over this time from the reset, s"),
+    Setting("contact_slack_weight", 0.0, "0: hard stance rows (seed 001), an infeasible tick ends the walk as a "
+            "failed solve; w > 0: the stance rows relaxed at a cost w |e|^2, per (m/s^2)^2 (mjx_coman.wbc.qp)"),
     Setting("n_steps", 5, "footsteps the MPC plans ahead (seed 001: N = 5)"),
     Setting("mpc_solver", "closed-form", "closed-form (equality-only, one linear solve) or qpax (with the "
             "friction bound |mu z0| on the CoM-to-foot distance)"),
@@ -81,7 +83,7 @@ SETTINGS = (
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
     meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body",
-                 "friction_coeff", "startup_s", "n_steps", "mpc_solver", "dt_s"],
+                 "friction_coeff", "startup_s", "contact_slack_weight", "n_steps", "mpc_solver", "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
 class Config:
@@ -123,6 +125,7 @@ class Config:
     fixed_upper_body: bool
     friction_coeff: float
     startup_s: float
+    contact_slack_weight: float
     n_steps: int
     mpc_solver: str
     dt_s: float = 0.002
@@ -141,7 +144,8 @@ def _number(name, v, lo, hi, lo_open=False) -> float:
 
 def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4,
                 plant: str = "torque-ideal", fixed_upper_body: bool = True, friction_coeff: float = 0.7,
-                startup_s: float = 0.05, n_steps: int = 5, mpc_solver: str = "closed-form", **tunables) -> Config:
+                startup_s: float = 0.05, contact_slack_weight: float = 0.0,
+                n_steps: int = 5, mpc_solver: str = "closed-form", **tunables) -> Config:
     """A validated config (host).
 
     Raises:
@@ -167,6 +171,7 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
     knee_rad = _number("knee_rad", knee_rad, 0.1, 1.2)
     friction_coeff = _number("friction_coeff", friction_coeff, 0.0, 2.0, lo_open=True)
     startup_s = _number("startup_s", startup_s, 0.0, 1.0)
+    contact_slack_weight = _number("contact_slack_weight", contact_slack_weight, 0.0, 1e8)
     values = {s.name: s.default for s in SETTINGS if s.tunable} | tunables
     bounds = {s.name: s.bounds for s in SETTINGS if s.tunable}
     for name, v in values.items():
@@ -181,4 +186,5 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
                   com_ref_m=jnp.asarray(com, f), sole_anchor_m=jnp.asarray(soles, f), step_time_s=step_time_s,
                   double_support_s=double_support_s, start_s=start_s, knee_rad=knee_rad, plant=plant,
                   fixed_upper_body=fixed_upper_body, friction_coeff=friction_coeff, startup_s=startup_s,
-                  n_steps=n_steps, mpc_solver=mpc_solver)
+                  contact_slack_weight=contact_slack_weight, n_steps=n_steps,
+                  mpc_solver=mpc_solver)

@@ -18,7 +18,9 @@ def config():
                                       (dict(n_steps=0), "n_steps"), (dict(half_width_m=0.01), "half_width_m"),
                                       (dict(clearance_m=float("nan")), "clearance_m"), (dict(foo=1.0), "foo"),
                                       (dict(double_support_s=0.3), "double_support_s"),
-                                      (dict(double_support_s=-0.01), "double_support_s")])
+                                      (dict(double_support_s=-0.01), "double_support_s"),
+                                      (dict(contact_slack_weight=-1.0), "contact_slack_weight"),
+                                      (dict(contact_slack_weight=float("inf")), "contact_slack_weight")])
 def test_bad_settings_name_the_value(kw, name):
     with pytest.raises(ValueError, match=name):
         make_config(**kw)
