@@ -76,6 +76,10 @@ def holdout_configs(record: dict, model: str, overrides: dict, **grid) -> list[S
     return [check(SweepConfig(model=model, direction=d, **g).with_overrides(ov)) for d in dirs]
 
 
+def _failed_solves(res: dict) -> int:
+    return report.outcome_counts(res)["solve_failed"] if "reason" in res else 0
+
+
 def summary(run) -> dict:
     """Recovery rate, steps to recover and the largest recovered impulse per phase of one held-out sweep."""
     res, cfg = run.results, run.config
@@ -87,7 +91,7 @@ def summary(run) -> dict:
     return dict(
         direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=report.recovery_rate(res),
         pushed_recovery_rate=report.recovery_rate(res, pushed),
-        nan=int(np.sum(res["nan"])),
+        nan=int(np.sum(res["nan"])), solve_failed=_failed_solves(res),
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
@@ -114,7 +118,7 @@ def compare(runs: dict) -> dict:
         late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst
                                if "late_error" in r.results] or [np.zeros(0)])
         out[name] = dict(recovery_rate=report.recovery_rate(dict(fell=~ok & ~nan, nan=nan)), rollouts=int(ok.size),
-                         nan=int(nan.sum()),
+                         nan=int(nan.sum()), solve_failed=sum(_failed_solves(r.results) for r in lst),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
                          settled=int(settled.size), model=lst[0].config.model,
                          recover_tol=lst[0].config.recover_tol if lst[0].config.model == "3lp" else None,
@@ -240,8 +244,9 @@ def format_table(table: dict) -> str:
             weakest.append(f"{d['direction']} {min(v or 0.0 for v in best):g}")
         finite = t["rollouts"] - t["nan"]
         count = f"{t['rollouts']}" if not t["nan"] else f"{finite} finite ({t['nan']} of {t['rollouts']} non-finite)"
+        failed = f", {t['solve_failed']} ended by a failed solve" if t.get("solve_failed") else ""
         lines.append(f"  held-out {t['model']} grid, {name} constants: {report.percent(t['recovery_rate'])} of {count} "
-                     f"recovered; {t['settled']} pushed walks settled, after {steps} steps on average; "
+                     f"recovered{failed}; {t['settled']} pushed walks settled, after {steps} steps on average; "
                      f"largest impulse recovered at the weakest phase (N s): {', '.join(weakest)}")
     if "paired" in table:
         p = table["paired"]

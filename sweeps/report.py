@@ -71,14 +71,18 @@ def repeat_rows(config: SweepConfig, results: dict, r: int) -> dict:
 
 
 def pooled(config: SweepConfig, results: dict) -> dict:
-    """One repeat's rows where a push counts as recovered only if it recovered in every repeat (for maps)."""
+    """One repeat's rows where a push counts as recovered only if it recovered in every repeat (for maps); its
+    ``reason`` is ``"nan"`` if any repeat went non-finite, else ``"solve_failed"`` if any ended by a failed
+    solve, else ``"fell"`` if any fell."""
     if config.repeats == 1:
         return results
     subs = [repeat_rows(config, results, r) for r in range(config.repeats)]
     ok = np.all([recovered(sub) for sub in subs], axis=0)
     nan = np.any([sub["nan"] for sub in subs], axis=0)
+    failed = np.any([np.asarray(sub["reason"]) == "solve_failed" for sub in subs], axis=0)
     steps = np.max([sub["steps_to_recover"] for sub in subs], axis=0)
-    return dict(subs[0], fell=~ok & ~nan, nan=nan, steps_to_recover=np.where(ok, steps, -1))
+    reason = np.where(nan, "nan", np.where(failed, "solve_failed", np.where(ok, "", "fell")))
+    return dict(subs[0], fell=~ok & ~nan, nan=nan, steps_to_recover=np.where(ok, steps, -1), reason=reason)
 
 
 def blocks(config: SweepConfig, results: dict) -> list[tuple[SweepConfig, dict]]:
@@ -256,18 +260,29 @@ def _grid(config: SweepConfig, values: np.ndarray) -> np.ndarray:
     return np.asarray(values).reshape(len(config.phases), len(config.impulses_ns)).T
 
 
+MAP_COLOURS = ("#7fc97f", "#f0027f", "#999999", "#fdb462")
+MAP_LABELS = ("recovered", "fell", "numerically bad (NaN)", "controller's solve failed")
+
+
+def map_states(results: dict) -> np.ndarray:
+    """Per rollout the index into :data:`MAP_COLOURS`: 0 recovered, 1 fell, 2 NaN, 3 ended by a failed solve."""
+    failed = np.asarray(results.get("reason", np.zeros(np.shape(results["fell"]), str))) == "solve_failed"
+    return np.where(results["nan"], 2, np.where(recovered(results), 0, np.where(failed, 3, 1)))
+
+
 def plot_basin(ax, config: SweepConfig, results: dict, title: str | None = None) -> None:
-    """Recovered / fell / NaN map over push phase x impulse, with steps-to-recover contours."""
+    """Recovered / fell / failed solve / NaN map over push phase x impulse, with steps-to-recover contours."""
     from matplotlib.colors import ListedColormap
 
     ph = np.asarray(config.phases)
     imp = np.asarray(config.impulses_ns)
-    state = np.where(results["nan"], 2, np.where(recovered(results), 0, 1))
-    cmap = ListedColormap(["#7fc97f", "#f0027f", "#999999"])
+    state = map_states(results)
+    cmap = ListedColormap(MAP_COLOURS)
     dph = 1.0 / len(ph) if len(ph) > 1 else 1.0
     x_edges = np.append(ph, ph[-1] + (ph[-1] - ph[-2] if len(ph) > 1 else dph))
     y_edges = _edges(imp)
-    ax.pcolormesh(x_edges, y_edges, _grid(config, state), cmap=cmap, vmin=-0.5, vmax=2.5, shading="flat")
+    ax.pcolormesh(x_edges, y_edges, _grid(config, state), cmap=cmap, vmin=-0.5, vmax=len(MAP_COLOURS) - 0.5,
+                  shading="flat")
     steps = _grid(config, np.where(recovered(results) & (results["steps_to_recover"] >= 0),
                                    results["steps_to_recover"], np.nan)).astype(float)
     if len(ph) > 1 and len(imp) > 1 and np.isfinite(steps).sum() > 3:
@@ -294,9 +309,8 @@ def _edges(v: np.ndarray) -> np.ndarray:
 def _legend(fig) -> None:
     from matplotlib.patches import Patch
 
-    fig.legend(handles=[Patch(color="#7fc97f", label="recovered"), Patch(color="#f0027f", label="fell"),
-                        Patch(color="#999999", label="numerically bad (NaN)")],
-               loc="lower center", ncol=3, frameon=False)
+    fig.legend(handles=[Patch(color=c, label=label) for c, label in zip(MAP_COLOURS, MAP_LABELS)],
+               loc="lower center", ncol=len(MAP_COLOURS), frameon=False)
 
 
 def save_basin_png(path: Path, runs: list[SweepRun], row_per_run: bool = False) -> None:

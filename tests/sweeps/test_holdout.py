@@ -49,6 +49,21 @@ def test_non_finite_walks_are_named_in_the_table(fake_run):
     assert t["paired"]["tuned_rate"] == 0.25 and t["tuned"]["recovery_rate"] == 1.0
 
 
+def test_failed_solves_are_counted_in_the_table(fake_run):
+    from sweeps.runner import failure_reason
+
+    cfg = SweepConfig(model="mjx", phases=(0.0, 0.5), impulses_ns=(1.0, 2.0, 3.0)).validate()
+    seed, tuned = fake_run(cfg, lambda g, i: 2.0), fake_run(cfg, lambda g, i: 2.0)
+    r = tuned.results
+    r["reason"] = failure_reason(r["fell"], r["nan"], r["fell"] & (r["phase"] > 0))  # one of the two falls
+    t = holdout.compare({"seed": [seed], "tuned": [tuned]})
+    assert (t["seed"]["solve_failed"], t["tuned"]["solve_failed"]) == (0, 1)
+    assert [d["solve_failed"] for d in t["tuned"]["per_direction"]] == [1]
+    text = holdout.format_table(t)
+    assert "tuned constants: 66.7% of 6 recovered, 1 ended by a failed solve;" in text, text
+    assert "seed constants: 66.7% of 6 recovered;" in text, text
+
+
 def test_flat_and_record_files_give_the_overrides(tmp_path):
     (tmp_path / "t.json").write_text(json.dumps(RECORD))
     assert holdout.load_overrides(tmp_path / "t.json") == RECORD["overrides_after"]
