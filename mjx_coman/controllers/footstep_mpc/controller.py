@@ -32,7 +32,6 @@ from mjx_coman.floating_base import sole_site_ids
 from mjx_coman.kinematics import quat_to_rot
 
 MPC_QP_MAX_ITER = 20
-WBC_MAX_ITER = 20
 
 
 class State(NamedTuple):
@@ -206,7 +205,7 @@ def step(config: Config, state: State, obs):
         extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
             c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
     lo, hi = stall_torque_nm(tick.tau_min_nm)
-    qp = wbc.solve(plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=WBC_MAX_ITER,
+    qp = wbc.solve(plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,
                    contact_slack_weight=c.contact_slack_weight or None, **extra)
     tau_nm = torque.startup_ramp(obs.time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
 

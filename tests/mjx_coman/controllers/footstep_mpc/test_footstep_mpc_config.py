@@ -20,7 +20,8 @@ def config():
                                       (dict(double_support_s=0.3), "double_support_s"),
                                       (dict(double_support_s=-0.01), "double_support_s"),
                                       (dict(contact_slack_weight=-1.0), "contact_slack_weight"),
-                                      (dict(contact_slack_weight=float("inf")), "contact_slack_weight")])
+                                      (dict(contact_slack_weight=float("inf")), "contact_slack_weight"),
+                                      (dict(qp_max_iter=0), "qp_max_iter"), (dict(qp_max_iter=2.5), "qp_max_iter")])
 def test_bad_settings_name_the_value(kw, name):
     with pytest.raises(ValueError, match=name):
         make_config(**kw)
