@@ -76,10 +76,6 @@ def holdout_configs(record: dict, model: str, overrides: dict, **grid) -> list[S
     return [check(SweepConfig(model=model, direction=d, **g).with_overrides(ov)) for d in dirs]
 
 
-def _failed_solves(res: dict) -> int:
-    return report.outcome_counts(res)["solve_failed"] if "reason" in res else 0
-
-
 def summary(run) -> dict:
     """Recovery rate, steps to recover and the largest recovered impulse per phase of one held-out sweep."""
     res, cfg = run.results, run.config
@@ -91,7 +87,7 @@ def summary(run) -> dict:
     return dict(
         direction=cfg.direction, rollouts=int(cfg.n_rollouts), recovery_rate=report.recovery_rate(res),
         pushed_recovery_rate=report.recovery_rate(res, pushed),
-        nan=int(np.sum(res["nan"])), solve_failed=_failed_solves(res),
+        nan=int(np.sum(res["nan"])), solve_failed=report.outcome_counts(res)["solve_failed"],
         undisturbed_fell=int(np.sum(~ok & ~pushed)),
         mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
         recovered_but_unsettled=int(np.sum(steps < 0)),
@@ -118,7 +114,8 @@ def compare(runs: dict) -> dict:
         late = np.concatenate([r.results["late_error"][report.recovered(r.results)] for r in lst
                                if "late_error" in r.results] or [np.zeros(0)])
         out[name] = dict(recovery_rate=report.recovery_rate(dict(fell=~ok & ~nan, nan=nan)), rollouts=int(ok.size),
-                         nan=int(nan.sum()), solve_failed=sum(_failed_solves(r.results) for r in lst),
+                         nan=int(nan.sum()),
+                         solve_failed=sum(report.outcome_counts(r.results)["solve_failed"] for r in lst),
                          mean_steps_to_recover=float(np.mean(settled)) if settled.size else None,
                          settled=int(settled.size), model=lst[0].config.model,
                          recover_tol=lst[0].config.recover_tol if lst[0].config.model == "3lp" else None,

@@ -31,7 +31,7 @@ import numpy as np
 
 from sweeps.grid import SCENARIO_AXES, TEXT_AXES, SweepConfig, direction_rad
 from jaxlp.files import save_bytes_atomic, save_npz_atomic, save_text_atomic, strict_json
-from sweeps.runner import SweepRun
+from sweeps.runner import SweepRun, failure_reason
 
 CSV_COLUMNS = ("index", "phase", "impulse_ns", "force_n", "direction_rad", "fell", "steps_to_recover",
                "max_abs_footstep_adjustment_m", "fall_time_s", "reason")
@@ -81,8 +81,9 @@ def pooled(config: SweepConfig, results: dict) -> dict:
     nan = np.any([sub["nan"] for sub in subs], axis=0)
     failed = np.any([np.asarray(sub["reason"]) == "solve_failed" for sub in subs], axis=0)
     steps = np.max([sub["steps_to_recover"] for sub in subs], axis=0)
-    reason = np.where(nan, "nan", np.where(failed, "solve_failed", np.where(ok, "", "fell")))
-    return dict(subs[0], fell=~ok & ~nan, nan=nan, steps_to_recover=np.where(ok, steps, -1), reason=reason)
+    fell = ~ok & ~nan
+    return dict(subs[0], fell=fell, nan=nan, steps_to_recover=np.where(ok, steps, -1),
+                reason=failure_reason(fell, nan, failed))
 
 
 def blocks(config: SweepConfig, results: dict) -> list[tuple[SweepConfig, dict]]:

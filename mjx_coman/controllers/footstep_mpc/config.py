@@ -145,6 +145,12 @@ def _number(name, v, lo, hi, lo_open=False) -> float:
     return float(v)
 
 
+def _whole(name, v, lo, hi) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise ValueError(f"{name}={v!r} must be a whole number in [{lo}, {hi}]")
+    return v
+
+
 def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4,
                 plant: str = "torque-ideal", fixed_upper_body: bool = True, friction_coeff: float = 0.7,
                 startup_s: float = 0.05, contact_slack_weight: float = 0.0,
@@ -163,10 +169,8 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
         raise ValueError(f"mpc_solver={mpc_solver!r} must be one of {', '.join(MPC_SOLVERS)}")
     if not isinstance(fixed_upper_body, bool):
         raise ValueError(f"fixed_upper_body={fixed_upper_body!r} must be true or false")
-    if isinstance(n_steps, bool) or not isinstance(n_steps, int) or not 1 <= n_steps <= 20:
-        raise ValueError(f"n_steps={n_steps!r} must be a whole number in [1, 20]")
-    if isinstance(qp_max_iter, bool) or not isinstance(qp_max_iter, int) or not 1 <= qp_max_iter <= 200:
-        raise ValueError(f"qp_max_iter={qp_max_iter!r} must be a whole number in [1, 200]")
+    n_steps = _whole("n_steps", n_steps, 1, 20)
+    qp_max_iter = _whole("qp_max_iter", qp_max_iter, 1, 200)
     step_time_s = _number("step_time_s", step_time_s, 0.2, 1.0)
     dt = 0.002
     if abs(round(step_time_s / dt) * dt - step_time_s) > 1e-9:
