@@ -188,3 +188,9 @@ register("wbc-stand-sea", "mjx_coman.controllers.wbc_stand", "wbc-stand through 
          walking=False, plant="torque-sea")
 _FM = "mjx_coman.controllers.footstep_mpc"
 register("footstep-mpc", _FM, "seed 001: LIPM footstep MPC with steering over the whole-body QP, ideal torques")
+_SL = "mjx_coman.controllers.straight_leg"
+register("straight-leg", _SL, "seed 004: ICP walking with straight knees in the QP's null space, ideal torques")
+register("bent-knee", _SL, "seed 004's baseline: the same ICP controller holding the crouched CoM height",
+         knee_mode="bent")
+register("straight-leg-step-adjust", _SL, "straight-leg moving its footsteps by the ICP error at touchdown",
+         step_adjust=True)

@@ -44,7 +44,7 @@ def stand_run(env_params, reset_state, standing_q):
 
 WALK_S = 2.4  # a start-up phase and five steps of the time-projection gait
 WALK_ROWS = 16
-TORQUE_WALK_ROWS = 2  # per family: its unpushed walk and a variant's (the series-elastic one)
+TORQUE_WALK_ROWS = 2  # per family at least: its unpushed walk and a variant's (more rows if it has more variants)
 TORQUE_GRAD_ROWS = 4  # the gradient check's three rows (slow: a second, forward-differentiated compilation)
 TORQUE_WALK_S = 1.0  # a QP a tick (with its tangent): the torque batch walks shorter
 GRAD_WINDOW_S = 0.3  # the cost of the gradient check: the controller's own start, before any step
@@ -220,7 +220,8 @@ def torque_walks():
     def get(rep, gradient=False):
         if (rep, gradient) not in cache:
             fams = [f for f in _families(torque=True) if f[0] == rep]
-            cache[rep, gradient] = _batch(fams, TORQUE_GRAD_ROWS if gradient else TORQUE_WALK_ROWS, TORQUE_WALK_S,
+            n_rows = max(TORQUE_GRAD_ROWS if gradient else TORQUE_WALK_ROWS, len(_rows(fams, False, gradient)[0]))
+            cache[rep, gradient] = _batch(fams, n_rows, TORQUE_WALK_S,
                                           pushed=False, gradient=gradient)
         return cache[rep, gradient]
 

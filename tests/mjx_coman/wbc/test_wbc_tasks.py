@@ -114,3 +114,24 @@ def test_reference_plant_accelerations_match_mujoco_rne(model, states):
         np.testing.assert_allclose(p.cmm @ qvel, np.concatenate([mass * d.subtree_linvel[1], d.subtree_angmom[1]]),
                                    atol=1e-10)
         np.testing.assert_allclose(p.com_jac @ qvel, d.subtree_linvel[1], atol=1e-12)
+
+
+def test_null_space_task_stays_finite_and_exact_at_a_straight_knee(model, states):
+    """Seed 004 eq. 10 at the singularity it is used at: both knees at 0 rad (straight), the task Jacobian of
+    straight-leg (x-y momentum, pelvis orientation, a swing foot). The SVD pseudo-inverse with its cut-off keeps
+    the projector finite, idempotent and orthogonal to every task row."""
+    qpos, qvel, _ = states[0]
+    qpos = qpos.copy()
+    for name in ("RKneeSag", "LKneeSag"):
+        qpos[model.jnt_qposadr[model.joint(name).id]] = 0.0
+    p = ref.plant_at(model, qpos, np.zeros_like(qvel))
+    jac = np.concatenate([p.cmm[:2], p.pelvis_jac[3:], p.sole_jac[1]])
+    t = wbc.null_space_task(jac, np.ones(29), 1.0)
+    proj = np.asarray(t.qdd_jac)
+    assert np.all(np.isfinite(proj)) and np.all(np.isfinite(np.asarray(t.target)))
+    np.testing.assert_allclose(proj @ jac.T, 0.0, atol=1e-9)
+    np.testing.assert_allclose(proj @ proj, proj, atol=1e-9)
+    # the same in float32, as the rollouts run it
+    t32 = wbc.null_space_task(jnp.asarray(jac, jnp.float32), jnp.ones(29, jnp.float32), 1.0)
+    assert np.all(np.isfinite(np.asarray(t32.qdd_jac)))
+    np.testing.assert_allclose(np.asarray(t32.qdd_jac) @ jac.T, 0.0, atol=1e-5 * np.abs(jac).max())  # float32 round-off

@@ -1,0 +1,31 @@
+"""Straight-leg capture-point walking (seed 004) on the torque-controlled simulated COMAN: the family's ``CONTROLLER``.
+
+ICP planning over constant CMPs and ICP feedback (:mod:`jaxlp.icp`), the momentum-based whole-body QP with only
+the x-y linear momentum rate prescribed (:mod:`mjx_coman.wbc`, seed 004 eq. 5-8), the privileged straight-knee
+configuration in the null space of the tasks (eq. 9-10) set per leg by the state machine of Fig. 5
+(:mod:`.legs`), seed 001's swing-foot and pelvis trajectories. The robot's own sensors only; fixed step timing.
+
+Modules: :mod:`.config` (settings, config pytree), :mod:`.legs` (state machine), :mod:`.controller`
+(``init``/``step``). Variants (registered in :mod:`mjx_coman.controllers`): ``straight-leg``, ``bent-knee``
+(``knee_mode=bent``: a CoM height task at the crouched stance instead of the null-space straightening) and
+``straight-leg-step-adjust`` (``step_adjust=true``).
+"""
+
+from mjx_coman.controllers.base import Controller, Gait
+from mjx_coman.controllers.straight_leg import config as _config
+from mjx_coman.controllers.straight_leg import controller as _controller
+
+
+def gait(config: _config.Config) -> Gait:
+    return Gait(knee_rad=config.knee_rad, control_period_s=config.dt_s, first_step_s=config.start_s,
+                step_time_s=config.step_time_s, max_forward_mps=_config.MAX_FORWARD_MPS,
+                max_lateral_mps=_config.MAX_LATERAL_MPS, max_turn_rad_per_s=_config.MAX_TURN_RAD_PER_S,
+                plant=config.plant)
+
+
+CONTROLLER = Controller(
+    name="straight-leg", make_config=_config.make_config, init=_controller.init, step=_controller.step, gait=gait,
+    settings=_config.SETTINGS,
+    description="seed 004: ICP planning and feedback, momentum-based whole-body QP, straight knees in its null space",
+    tune_default=("icp_gain", "momentum_weight", "swing_kp_per_s2", "privileged_weight"),
+)
