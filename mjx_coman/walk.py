@@ -307,39 +307,17 @@ def stance_metrics(res, plant: str) -> dict:
     return out
 
 
-GAIT_AFTER_S = 2.0  # the gait metrics leave out the start and the first steps
-
-
-def gait_metrics(res, record_period_s: float, after_s: float = GAIT_AFTER_S) -> dict:
-    """Knee metrics of the walk from the simulator (ground truth), past ``after_s`` and before any fall.
-
-    ``stance_knee_mid_rad``: the mean knee angle of the stance leg at mid-stance, the midpoint between a
-    touchdown and the next (the foot that landed first stands alone there); ``mean_abs_knee_torque_nm``: the
-    mean |link torque| of both knees; ``mean_abs_knee_power_w``: the mean |torque x joint rate| of both knees
-    (rates by central differences of the recorded angles). ``None`` where the walk has too few records."""
+def gait_metrics(res, record_period_s: float) -> dict:
+    """The knee metrics of :func:`mjx_coman.studies.metrics.knee_metrics` from the walk's recorded ``qpos`` and
+    link torques (ground truth)."""
     import numpy as np
 
     from mjx_coman.actuators import JOINT_INDEX
-    from mjx_coman.ground_truth import RIGHT
+    from mjx_coman.studies.metrics import knee_metrics
 
-    t = np.asarray(res.time_s)
-    end = float(res.fall_time_s) if bool(res.fell) else np.inf
-    qpos = np.asarray(res.saved["qpos"])
-    knees = np.stack([qpos[:, 7 + JOINT_INDEX["RKneeSag"]], qpos[:, 7 + JOINT_INDEX["LKneeSag"]]], axis=1)
-    tau = np.asarray(res.saved["link_torque_nm"])[:, [JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"]]]
-    ok = (t > after_s) & (t <= end)
-    out = {"stance_knee_mid_rad": None, "mean_abs_knee_torque_nm": None, "mean_abs_knee_power_w": None}
-    if ok.sum() >= 3:
-        rate = np.gradient(knees, record_period_s, axis=0)
-        out["mean_abs_knee_torque_nm"] = float(np.mean(np.abs(tau[ok])))
-        out["mean_abs_knee_power_w"] = float(np.mean(np.abs(tau[ok] * rate[ok])))
-    k = int(res.touchdowns)
-    td, foot = np.asarray(res.log.time_s)[:k], np.asarray(res.log.foot)[:k]
-    mids = [(0.5 * (a + b), 0 if f == RIGHT else 1) for a, b, f in zip(td[:-1], td[1:], foot[:-1])
-            if 0.5 * (a + b) > after_s and b <= end]
-    if mids and len(t):
-        out["stance_knee_mid_rad"] = float(np.mean([knees[np.argmin(np.abs(t - m)), leg] for m, leg in mids]))
-    return out
+    knees = [JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"]]
+    qpos, tau = np.asarray(res.saved["qpos"]), np.asarray(res.saved["link_torque_nm"])
+    return knee_metrics(res, qpos[:, [7 + k for k in knees]], tau[:, knees], record_period_s)
 
 
 def plot(res, path: str, title: str) -> None:

@@ -1,12 +1,12 @@
-"""Studies: seed 001's experiments (speeds, steer, push, model error, slope, noise, delay, terrain, actuators)
-for any registered walking controller, judged on the simulator's ground truth.
+"""Studies: seed 001's experiments (speeds, steer, push, model error, slope, noise, delay, terrain, actuators) and
+seed 004's (flat, mid-swing push) for any registered walking controller, judged on the simulator's ground truth.
 
     from mjx_coman import studies
     result, rows = studies.run("speeds", "footstep-mpc", size="small")  # JSON result, per-row figures
 
 ``python -m mjx_coman.studies NAME [--controller footstep-mpc] [--size full|small] --json [--plot F.png]``.
 Modules: :mod:`.batch` (batched walks over rows), :mod:`.metrics` (ground-truth figures of a walk),
-:mod:`.seed001` (the experiments), :mod:`.plots` (their figures), :mod:`.cli`.
+:mod:`.seed001` and :mod:`.seed004` (the experiments), :mod:`.plots` (their figures), :mod:`.cli`.
 """
 
 from __future__ import annotations
@@ -16,11 +16,17 @@ from typing import Callable
 SIZES = ("small", "full")
 
 
-def names() -> tuple[str, ...]:
-    """The experiments, in the paper's order."""
-    from mjx_coman.studies.seed001 import EXPERIMENTS
+def experiments() -> dict:
+    """``{name: Experiment}``: seed 001's (:mod:`.seed001`), then seed 004's (:mod:`.seed004`), each in its
+    paper's order."""
+    from mjx_coman.studies import seed001, seed004
 
-    return tuple(EXPERIMENTS)
+    return {**seed001.EXPERIMENTS, **seed004.EXPERIMENTS}
+
+
+def names() -> tuple[str, ...]:
+    """The experiments, seed 001's then seed 004's."""
+    return tuple(experiments())
 
 
 def plan(experiment: str, controller: str = "footstep-mpc", size: str = "full", seed: int = 0,
@@ -35,8 +41,8 @@ def plan(experiment: str, controller: str = "footstep-mpc", size: str = "full", 
             experiment cannot run, a bad seed.
     """
     from mjx_coman import controllers
-    from mjx_coman.studies.seed001 import EXPERIMENTS
 
+    EXPERIMENTS = experiments()
     if experiment not in EXPERIMENTS:
         raise ValueError(f"unknown experiment {experiment!r}; choose one of {', '.join(EXPERIMENTS)}")
     if size not in SIZES:
@@ -59,7 +65,8 @@ def run(experiment: str, controller: str = "footstep-mpc", size: str = "full", s
         ValueError: see :func:`plan`.
     """
     from mjx_coman.studies.batch import run_rows
-    from mjx_coman.studies.seed001 import EXPERIMENTS
+
+    EXPERIMENTS = experiments()
 
     p = plan(experiment, controller, size, seed, overrides)
     n = len(p.rows)

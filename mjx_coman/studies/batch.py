@@ -23,6 +23,7 @@ from mjx_coman import controllers
 from mjx_coman import ground_truth as gt
 from mjx_coman import rollout as ro
 from mjx_coman import scenarios as sc
+from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.studies import metrics
 
 RECORD_EVERY = 10  # control ticks between records (0.02 s at 500 Hz)
@@ -68,10 +69,16 @@ def _env(plant: str, rows: list[Row]):
     return dataclasses.replace(params, actuator=_stack(acts)), axes
 
 
+KNEES = (JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"])
+
+
 def _record(state: ro.RolloutState) -> dict:
-    """What each walk saves every ``RECORD_EVERY`` ticks: pelvis, CoM, pelvis yaw (no telemetry)."""
+    """What each walk saves every ``RECORD_EVERY`` ticks: pelvis, CoM, pelvis yaw, the knees' angles and link
+    torques (no telemetry)."""
     full = ro.pelvis_and_com(state)
-    return {k: full[k] for k in ("pelvis_m", "com_m", "pelvis_yaw_rad")}
+    d = state.env.data
+    knees = {"knee_rad": d.qpos[7 + np.asarray(KNEES)], "knee_torque_nm": d.ctrl[np.asarray(KNEES)]}
+    return {**{k: full[k] for k in ("pelvis_m", "com_m", "pelvis_yaw_rad")}, **knees}
 
 
 @functools.lru_cache(maxsize=16)
@@ -158,9 +165,10 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
             keys = np.stack([np.asarray(jax.random.PRNGKey(r.seed)) for r in chunk])
             joy = _stack([controllers.joystick(r.forward_mps, turn_rad_per_s=r.turn_rad_per_s) for r in chunk])
             res = jax.tree_util.tree_map(np.asarray, fn(config, env, pushes, keys, joy))
+            period = float(ctrl.gait(config).control_period_s)
             for j, i in enumerate(part):
                 one = jax.tree_util.tree_map(lambda x: x[j], res)
-                out[i] = metrics.summary(one, pushed=rows[i].push_ns > 0)
+                out[i] = metrics.summary(one, pushed=rows[i].push_ns > 0, record_period_s=period * RECORD_EVERY)
             done += len(part)
             if progress is not None:
                 progress(done)

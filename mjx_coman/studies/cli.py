@@ -1,7 +1,7 @@
 """Command line: ``python -m mjx_coman.studies NAME [--controller footstep-mpc] [--set KEY=VALUE ...] [--size full|small]
 [--seed 0] [--json] [--plot F.png] [--out F.json]``.
 
-Runs one of seed 001's experiments (:mod:`mjx_coman.studies.seed001`) for a registered walking controller and
+Runs one of seed 001's or seed 004's experiments (:mod:`mjx_coman.studies.seed001`, :mod:`~mjx_coman.studies.seed004`) for a registered walking controller and
 prints its result (JSON with ``--json``); ``--plot`` draws its figure, ``--out`` writes the JSON atomically.
 Every argument is checked before anything is built: a bad one exits with status 2 and one line on stderr.
 """

@@ -41,13 +41,55 @@ def cycle(res, seconds: float = CYCLE_S) -> dict:
             "lateral_max_mps": float(last[:, 1].max())}
 
 
-def summary(res, pushed: bool = False) -> dict:
+KNEE_AFTER_S = 2.0  # the knee metrics leave out the start and the first steps
+
+
+def knee_metrics(res, knee_rad, knee_torque_nm, record_period_s: float, after_s: float = KNEE_AFTER_S) -> dict:
+    """Knee figures of a walk from the simulator (ground truth), past ``after_s`` and before any fall.
+
+    Args:
+        res: the walk's result (its records' ``time_s``, the fall and the touchdown log).
+        knee_rad, knee_torque_nm: (n_rec, 2) the (right, left) knee angles and link torques at the records.
+        record_period_s: time between records, s.
+
+    Returns:
+        ``stance_knee_mid_rad``: the mean knee angle of the stance leg at mid-stance, the midpoint between a
+        touchdown and the next (the foot that landed first stands alone there); ``mean_abs_knee_torque_nm``:
+        the mean |link torque| of both knees; ``mean_abs_knee_power_w``: the mean |torque x joint rate| (rates
+        by central differences of the recorded angles); ``None`` where the walk has too few records.
+    """
+    from mjx_coman.ground_truth import RIGHT
+
+    t = np.asarray(res.time_s)
+    end = float(res.fall_time_s) if bool(res.fell) else np.inf
+    knees, tau = np.asarray(knee_rad, np.float64), np.asarray(knee_torque_nm, np.float64)
+    ok = (t > after_s) & (t <= end)
+    out = {"stance_knee_mid_rad": None, "mean_abs_knee_torque_nm": None, "mean_abs_knee_power_w": None}
+    if ok.sum() >= 3:
+        rate = np.gradient(knees, record_period_s, axis=0)
+        out["mean_abs_knee_torque_nm"] = float(np.mean(np.abs(tau[ok])))
+        out["mean_abs_knee_power_w"] = float(np.mean(np.abs(tau[ok] * rate[ok])))
+    k = int(res.touchdowns)
+    td, foot = np.asarray(res.log.time_s)[:k], np.asarray(res.log.foot)[:k]
+    mids = [(0.5 * (a + b), 0 if f == RIGHT else 1) for a, b, f in zip(td[:-1], td[1:], foot[:-1])
+            if 0.5 * (a + b) > after_s and b <= end]
+    if mids and len(t):
+        out["stance_knee_mid_rad"] = float(np.mean([knees[np.argmin(np.abs(t - m)), leg] for m, leg in mids]))
+    return out
+
+
+def summary(res, pushed: bool = False, record_period_s: float | None = None) -> dict:
     """The figures of one walk: verdict, mean speed, heading change, CoM-velocity cycle and (key ``series``,
     NumPy arrays for plots) time, CoM velocity, CoM position and yaw."""
     fell = bool(res.fell)
     s2r = int(res.steps_to_recover)
     t, v = com_velocity_mps(res)
     alive = _alive(res)
+    knees = {}
+    if record_period_s is not None and "knee_rad" in res.saved:
+        knees = knee_metrics(res, res.saved["knee_rad"], res.saved["knee_torque_nm"], record_period_s)
+        z = np.asarray(res.saved["com_m"])[:, 2][alive & (np.asarray(res.time_s) > KNEE_AFTER_S)]
+        knees["com_height_m"] = {"min": float(z.min()), "mean": float(z.mean()), "max": float(z.max())} if len(z) else None
     return {
         "fell": fell,
         "fall_time_s": float(res.fall_time_s) if fell else None,
@@ -58,6 +100,7 @@ def summary(res, pushed: bool = False) -> dict:
         "steps_to_recover": (s2r if s2r >= 0 else None) if pushed else None,
         "heading_change_rad": heading_change_rad(res),
         "cycle": cycle(res),
+        **knees,
         "series": {"time_s": t, "com_vel_mps": v,
                    "com_m": np.asarray(res.saved["com_m"])[alive],
                    "yaw_rad": np.unwrap(np.asarray(res.saved["pelvis_yaw_rad"], np.float64))[alive]},

@@ -1,4 +1,4 @@
-"""The figure of each seed 001 experiment (matplotlib): ``draw(result, rows, ax_or_path)``."""
+"""The figure of each seed 001 and seed 004 experiment (matplotlib): ``draw(result, rows, ax_or_path)``."""
 
 from __future__ import annotations
 
@@ -74,7 +74,31 @@ def _terrain(result, rows, axes):
     b.set(xlabel="time (s)", ylabel="CoM forward velocity (m/s)")
 
 
+def _flat(result, rows, axes):
+    a, b = axes
+    for r in rows:
+        s = r["series"]
+        a.plot(s["time_s"], s["com_m"][: len(s["time_s"]), 2], lw=0.7)
+        b.plot(s["com_m"][:, 0], s["com_m"][:, 1], lw=0.7)
+    x = rows[0] if rows else {}
+    knee = x.get("stance_knee_mid_rad")
+    a.set(xlabel="time (s)", ylabel="CoM height (m)",
+          title=f"stance knee at mid-stance {knee:.3f} rad" if knee is not None else "CoM height (Fig. 9)")
+    b.set(xlabel="CoM x (m)", ylabel="CoM y (m)", title="CoM path (Fig. 9)")
+
+
+def _mid_swing_push(result, rows, axes):
+    a, b = axes
+    _polar_ok(result, a, "impulse_ns", "impulse (N s): o recovered, x fell")
+    per = result["by_direction_deg"]
+    degs = sorted(int(d) for d in per)
+    best = [per[str(d)]["largest_recovered_ns"] or 0.0 for d in degs]
+    b.plot([math.radians(d) for d in degs + degs[:1]], best + best[:1], "-o", ms=3)
+    b.set_title("largest recovered impulse (N s) by direction", fontsize=8)
+
+
 DRAW = {
+    "flat": _flat, "mid-swing-push": _mid_swing_push,
     "speeds": _speeds, "steer": _steer, "push": _push, "terrain": _terrain,
     "model-error": lambda res, rows, ax: _largest(res, rows, ax, "payload_kg", "kg"),
     "slope": lambda res, rows, ax: _largest(res, rows, ax, "slope_deg", "deg"),
@@ -88,7 +112,7 @@ def figure(result: dict, rows: list):
     """A two-panel figure of an experiment's result (``rows``: :func:`mjx_coman.studies.run`'s)."""
     import matplotlib.pyplot as plt
 
-    polar = result["experiment"] == "push"
+    polar = result["experiment"] in ("push", "mid-swing-push")
     fig = plt.figure(figsize=(10, 4))
     axes = [fig.add_subplot(1, 2, i + 1, projection="polar" if polar else None) for i in range(2)]
     DRAW[result["experiment"]](result, rows, axes)

@@ -169,34 +169,3 @@ def test_video_shows_the_robot_every_frame_and_the_push_while_it_acts(short_walk
     robot = np.array([np.sum((f[..., 2] > 150) & (f[..., 0] < 100)) for f in frames])  # the blue left leg
     assert np.all(robot > 200)
 
-
-def test_gait_metrics_read_the_stance_knee_at_mid_stance_and_the_knee_torque_and_power():
-    """A synthetic walk: the right knee at 0.1 rad while it stands alone, the left at 0.5; touchdowns every
-    0.6 s alternating right, left; knee torques 2 and -4 N m, the right knee moving at 1 rad/s."""
-    from types import SimpleNamespace
-
-    from mjx_coman.actuators import JOINT_INDEX
-    from mjx_coman.ground_truth import LEFT, RIGHT
-
-    t = np.arange(1, 501) * 0.02  # 10 s of records
-    td = np.arange(0.3, 10.0, 0.6)
-    foot = np.where(np.arange(len(td)) % 2 == 0, RIGHT, LEFT)
-    qpos = np.zeros((len(t), 30))
-    r, l = 7 + JOINT_INDEX["RKneeSag"], 7 + JOINT_INDEX["LKneeSag"]
-    k = np.searchsorted(td, t, side="right") - 1  # the last touchdown before each record
-    right_alone = (k >= 0) & (foot[np.clip(k, 0, None)] == RIGHT)
-    qpos[:, r] = np.where(right_alone, 0.1, 0.5)
-    qpos[:, l] = np.where(right_alone, 0.5, 0.1)
-    tau = np.zeros((len(t), 23))
-    tau[:, JOINT_INDEX["RKneeSag"]], tau[:, JOINT_INDEX["LKneeSag"]] = 2.0, -4.0
-    res = SimpleNamespace(time_s=t, fell=False, fall_time_s=np.inf, touchdowns=len(td),
-                          log=SimpleNamespace(time_s=td, foot=foot), saved={"qpos": qpos, "link_torque_nm": tau})
-    m = cli.gait_metrics(res, 0.02)
-    assert m["stance_knee_mid_rad"] == pytest.approx(0.1)
-    assert m["mean_abs_knee_torque_nm"] == pytest.approx(3.0)
-    qpos[:, r], qpos[:, l] = t, 0.3  # the right knee at 1 rad/s, the left still
-    m = cli.gait_metrics(res, 0.02)
-    assert m["mean_abs_knee_power_w"] == pytest.approx(1.0, rel=1e-6)  # |2 N m x 1 rad/s| and 0 on the left
-    res.fell, res.fall_time_s = True, 1.5  # nothing after the start before the fall
-    assert cli.gait_metrics(res, 0.02) == {"stance_knee_mid_rad": None, "mean_abs_knee_torque_nm": None,
-                                           "mean_abs_knee_power_w": None}

@@ -42,12 +42,12 @@ OWN = (
     Setting("step_adjust", False, "move the next footstep (and the later ones) by the ICP error predicted at "
             "touchdown (beyond seed 004: jaxlp.icp.step_adjustment)"),
     Setting("n_steps", 4, "footsteps the ICP plan looks ahead (static)"),
+    Setting("momentum_weight", 0.12, "weight of the linear x-y momentum-rate rows (seed 004 eq. 6, 8), 1/N^2 "
+            "(0.12: about footstep-mpc's CoM weight of 100 per (m/s^2)^2 on COMAN's 28.9 kg)", True, (0.0, None)),
     Setting("icp_gain", 2.5, "ICP feedback: r_cmp = r_ref + gain (xi - xi_ref); the error decays at "
             "omega (gain - 1)", True, (1.0, 10.0)),
     Setting("icp_height_m", 0.53, "omega = sqrt(g / icp_height_m) of the ICP dynamics (a design parameter, "
             "seed 004 sec. II-A); the crouched stance's CoM height", True, (0.2, 1.0)),
-    Setting("momentum_weight", 0.12, "weight of the linear x-y momentum-rate rows (seed 004 eq. 6, 8), 1/N^2 "
-            "(0.12: about footstep-mpc's CoM weight of 100 per (m/s^2)^2 on COMAN's 28.9 kg)", True, (0.0, None)),
     Setting("com_height_weight", 100.0, "bent-knee only: weight of the CoM height row, 1/(m/s^2)^2", True,
             (0.0, None)),
     Setting("straight_knee_rad", 0.0, "privileged knee angle of a straight leg (the joint's limit is -0.17)", True,

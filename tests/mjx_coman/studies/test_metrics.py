@@ -47,3 +47,35 @@ def test_summary_of_a_fall():
     s = metrics.summary(res, pushed=True)
     assert s["fell"] and s["fall_time_s"] == 1.0 and s["steps_to_recover"] is None
     assert len(s["series"]["time_s"]) == 49 and s["series"]["com_m"].shape == (50, 3)
+
+
+def test_knee_metrics_read_the_stance_knee_at_mid_stance_and_the_knee_torque_and_power():
+    """A synthetic walk: the right knee at 0.1 rad while it stands alone, the left at 0.5; touchdowns every
+    0.6 s alternating right, left; knee torques 2 and -4 N m, the right knee moving at 1 rad/s."""
+    from types import SimpleNamespace
+
+    from mjx_coman.actuators import JOINT_INDEX
+    from mjx_coman.ground_truth import LEFT, RIGHT
+
+    t = np.arange(1, 501) * 0.02  # 10 s of records
+    td = np.arange(0.3, 10.0, 0.6)
+    foot = np.where(np.arange(len(td)) % 2 == 0, RIGHT, LEFT)
+    qpos = np.zeros((len(t), 30))
+    r, l = 7 + JOINT_INDEX["RKneeSag"], 7 + JOINT_INDEX["LKneeSag"]
+    k = np.searchsorted(td, t, side="right") - 1  # the last touchdown before each record
+    right_alone = (k >= 0) & (foot[np.clip(k, 0, None)] == RIGHT)
+    qpos[:, r] = np.where(right_alone, 0.1, 0.5)
+    qpos[:, l] = np.where(right_alone, 0.5, 0.1)
+    tau = np.zeros((len(t), 23))
+    tau[:, JOINT_INDEX["RKneeSag"]], tau[:, JOINT_INDEX["LKneeSag"]] = 2.0, -4.0
+    res = SimpleNamespace(time_s=t, fell=False, fall_time_s=np.inf, touchdowns=len(td),
+                          log=SimpleNamespace(time_s=td, foot=foot), saved={"qpos": qpos, "link_torque_nm": tau})
+    m = metrics.knee_metrics(res, qpos[:, [r, l]], tau[:, [r - 7, l - 7]], 0.02)
+    assert m["stance_knee_mid_rad"] == pytest.approx(0.1)
+    assert m["mean_abs_knee_torque_nm"] == pytest.approx(3.0)
+    qpos[:, r], qpos[:, l] = t, 0.3  # the right knee at 1 rad/s, the left still
+    m = metrics.knee_metrics(res, qpos[:, [r, l]], tau[:, [r - 7, l - 7]], 0.02)
+    assert m["mean_abs_knee_power_w"] == pytest.approx(1.0, rel=1e-6)  # |2 N m x 1 rad/s| and 0 on the left
+    res.fell, res.fall_time_s = True, 1.5  # nothing after the start before the fall
+    assert metrics.knee_metrics(res, qpos[:, [r, l]], tau[:, [r - 7, l - 7]], 0.02) == {"stance_knee_mid_rad": None, "mean_abs_knee_torque_nm": None,
+                                           "mean_abs_knee_power_w": None}

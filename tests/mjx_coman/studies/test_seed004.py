@@ -1,0 +1,57 @@
+"""Seed 004's experiments: plans and reductions (no walk is run here)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mjx_coman import controllers, studies
+from mjx_coman.studies import seed001, seed004
+from mjx_coman.studies.batch import check_rows
+
+
+@pytest.mark.parametrize("name", ["flat", "mid-swing-push"])
+@pytest.mark.parametrize("controller", ["straight-leg", "footstep-mpc"])
+def test_plans_are_valid_and_small_shares_the_flat_compilation(name, controller):
+    full = studies.plan(name, controller, "full")
+    small = studies.plan(name, controller, "small")
+    check_rows(controller, full.rows, full.seconds, full.overrides)
+    check_rows(controller, small.rows, small.seconds, small.overrides)
+    assert small.seconds == seed001.SMALL_S and len(small.rows) == seed001.SMALL_ROWS
+    assert small.labels == full.labels[: len(small.rows)]
+
+
+def test_mid_swing_is_the_middle_of_the_swing_after_the_transfer():
+    cfg = controllers.default_config("straight-leg")
+    ph = seed004.mid_swing_phase("straight-leg")
+    assert ph * cfg.step_time_s == pytest.approx(cfg.transfer_s + 0.5 * cfg.swing_s)
+    assert seed004.mid_swing_phase("footstep-mpc") == pytest.approx(0.5)  # no transfer by default
+    push = studies.plan("mid-swing-push", "straight-leg")
+    gait = controllers.get("straight-leg").gait(cfg)
+    assert {lab["direction_deg"] for lab in push.labels} == set(range(0, 360, 45))
+    assert all(r.push_duration_s == 0.1 and r.forward_mps == seed004.PUSH_MPS for r in push.rows)
+    for r in push.rows:
+        assert r.push_start_s == pytest.approx(gait.first_step_s + (seed004.PUSH_STEP + ph) * gait.step_time_s)
+    assert max(lab["impulse_ns"] for lab in push.labels) >= 10.0  # the common ICP-stack test's size
+
+
+def test_flat_speed_is_atlas_scaled_by_froude():
+    plan = studies.plan("flat", "straight-leg")
+    assert plan.labels[0]["speed_mps"] == pytest.approx(0.26 * math.sqrt(0.432 / 0.85), abs=0.005)
+    assert plan.seconds == 20.0
+
+
+def _result(fell, steps=2):
+    return {"fell": fell, "fall_time_s": 1.0 if fell else None, "nan": False, "solve_failed": False,
+            "touchdowns": 10, "mean_speed_mps": 0.15, "heading_change_rad": 0.0, "cycle": {},
+            "steps_to_recover": None if fell else steps, "series": {}}
+
+
+def test_push_reduction_reads_the_largest_recovered_impulse_below_the_first_fall():
+    plan = studies.plan("mid-swing-push", "straight-leg")
+    res = [_result(lab["impulse_ns"] > 5.0 or (lab["direction_deg"] == 90 and lab["impulse_ns"] == 2.0),
+                   steps=int(lab["impulse_ns"])) for lab in plan.labels]
+    out = seed004.EXPERIMENTS["mid-swing-push"].reduce(plan, res)["by_direction_deg"]
+    assert out["0"]["largest_recovered_ns"] == 5.0 and out["90"]["largest_recovered_ns"] == 1.0
+    assert out["0"]["median_steps_to_recover"] == pytest.approx(np.median([1, 2, 3, 4, 5]))
+    assert out["90"]["median_steps_to_recover"] == 1.0  # only what lies below the first fall
