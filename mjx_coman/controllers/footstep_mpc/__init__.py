@@ -18,14 +18,12 @@ compiled QP for the contract's batch).
 
 from mjx_coman.controllers.base import Controller, Gait
 from mjx_coman.controllers.footstep_mpc import config as _config
+from mjx_coman.controllers.footstep_mpc import stepping
 from mjx_coman.controllers.footstep_mpc import controller as _controller
 
 
 def gait(config: _config.Config) -> Gait:
-    return Gait(knee_rad=config.knee_rad, control_period_s=config.dt_s, first_step_s=config.start_s,
-                step_time_s=config.step_time_s, max_forward_mps=_config.MAX_FORWARD_MPS,
-                max_lateral_mps=_config.MAX_LATERAL_MPS, max_turn_rad_per_s=_config.MAX_TURN_RAD_PER_S,
-                plant=config.plant)
+    return stepping.gait(config, _config)
 
 
 CONTROLLER = Controller(

@@ -137,7 +137,8 @@ class Config:
         return dataclasses.replace(self, **kw)
 
 
-def _number(name, v, lo, hi, lo_open=False) -> float:
+def number_in(name, v, lo, hi, lo_open=False) -> float:
+    """``v`` as a float, or a ``ValueError`` naming ``name`` if it is not a finite number in ``[lo, hi]``."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise ValueError(f"{name}={v!r} must be a finite number")
     if v < lo or v > hi or (lo_open and v == lo):
@@ -171,16 +172,16 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
         raise ValueError(f"fixed_upper_body={fixed_upper_body!r} must be true or false")
     n_steps = _whole("n_steps", n_steps, 1, 20)
     qp_max_iter = _whole("qp_max_iter", qp_max_iter, 1, 200)
-    step_time_s = _number("step_time_s", step_time_s, 0.2, 1.0)
+    step_time_s = number_in("step_time_s", step_time_s, 0.2, 1.0)
     dt = 0.002
     if abs(round(step_time_s / dt) * dt - step_time_s) > 1e-9:
         raise ValueError(f"step_time_s={step_time_s!r} must be a whole number of {dt:g} s control ticks")
-    double_support_s = _number("double_support_s", double_support_s, 0.0, step_time_s / 2)
-    start_s = _number("start_s", start_s, 0.0, 5.0)
-    knee_rad = _number("knee_rad", knee_rad, 0.1, 1.2)
-    friction_coeff = _number("friction_coeff", friction_coeff, 0.0, 2.0, lo_open=True)
-    startup_s = _number("startup_s", startup_s, 0.0, 1.0)
-    contact_slack_weight = _number("contact_slack_weight", contact_slack_weight, 0.0, 1e8)
+    double_support_s = number_in("double_support_s", double_support_s, 0.0, step_time_s / 2)
+    start_s = number_in("start_s", start_s, 0.0, 5.0)
+    knee_rad = number_in("knee_rad", knee_rad, 0.1, 1.2)
+    friction_coeff = number_in("friction_coeff", friction_coeff, 0.0, 2.0, lo_open=True)
+    startup_s = number_in("startup_s", startup_s, 0.0, 1.0)
+    contact_slack_weight = number_in("contact_slack_weight", contact_slack_weight, 0.0, 1e8)
     values = {s.name: s.default for s in SETTINGS if s.tunable} | tunables
     bounds = {s.name: s.bounds for s in SETTINGS if s.tunable}
     for name, v in values.items():

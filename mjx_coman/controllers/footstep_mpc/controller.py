@@ -21,7 +21,6 @@ import jax.numpy as jnp
 from jaxlp import footsteps as fs
 from jaxlp import lipm
 from mjx_coman import wbc
-from mjx_coman.controllers import torque
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Telemetry
 from mjx_coman.controllers.footstep_mpc import stepping
 from mjx_coman.controllers.footstep_mpc import trajectory as tr
@@ -108,14 +107,7 @@ def step(config: Config, state: State, obs):
              wbc.qdd_regularization(c.qdd_weight, est.qvel.shape[0]),
              wbc.force_regularization(c.force_weight_per_n2),
              wbc.force_distribution_task(plant.contact_pos, plant.com, c.force_weight_per_n2)]
-    extra = {}
-    if c.fixed_upper_body:
-        extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
-            c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
-    lo, hi = stall_torque_nm(s.tick.tau_min_nm)
-    qp = wbc.solve(plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,
-                   contact_slack_weight=c.contact_slack_weight or None, **extra)
-    tau_nm = torque.startup_ramp(obs.time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
+    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype)
 
     # telemetry: heading frame, relative to the stance foot's centre
     to_local = stepping.rot2(heading).T

@@ -25,6 +25,7 @@ import numpy as np
 from mjx_coman import wbc
 from mjx_coman.actuators import make_actuator_params, torque_limits_nm
 from mjx_coman.controllers import torque
+from mjx_coman.controllers.base import Gait
 from mjx_coman.controllers.footstep_mpc import trajectory as tr
 from mjx_coman.env import MID_FOOT_AHEAD_M
 from mjx_coman.floating_base import sole_site_ids
@@ -186,6 +187,30 @@ def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing
                                   c.base_kp_per_s2, c.base_kd_per_s, base_wd)
     error = jnp.where(s.single, jnp.linalg.norm(ref.pos - s.sole_pos[s.swing]), 0.0)
     return jnp.concatenate([lin, ang]), base_acc, error
+
+
+def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype):
+    """The whole-body QP of ``tasks`` with the stance ``mask`` (fixed upper body held by a joint PD outside it when
+    the config says so; the stall torque as bounds), and its torques ramped in after the reset: ``(qp, tau)``."""
+    c = config
+    est = s.tick.base
+    extra = {}
+    if c.fixed_upper_body:
+        extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
+            c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
+    lo, hi = stall_torque_nm(s.tick.tau_min_nm)
+    qp = wbc.solve(s.tick.plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,
+                   contact_slack_weight=c.contact_slack_weight or None, **extra)
+    return qp, torque.startup_ramp(time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
+
+
+def gait(config, limits) -> Gait:
+    """The :class:`~mjx_coman.controllers.base.Gait` of a config on this step clock; ``limits`` has the family's
+    ``MAX_FORWARD_MPS``, ``MAX_LATERAL_MPS`` and ``MAX_TURN_RAD_PER_S``."""
+    return Gait(knee_rad=config.knee_rad, control_period_s=config.dt_s, first_step_s=config.start_s,
+                step_time_s=config.step_time_s, max_forward_mps=limits.MAX_FORWARD_MPS,
+                max_lateral_mps=limits.MAX_LATERAL_MPS, max_turn_rad_per_s=limits.MAX_TURN_RAD_PER_S,
+                plant=config.plant)
 
 
 def stall_torque_nm(like):

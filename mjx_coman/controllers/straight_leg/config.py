@@ -137,14 +137,6 @@ class Config:
         return dataclasses.replace(self, leaves={**self.leaves, **kw})
 
 
-def _number(name, v, lo, hi, lo_open=False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ValueError(f"{name}={v!r} must be a finite number")
-    if v < lo or v > hi or (lo_open and v == lo):
-        raise ValueError(f"{name}={v!r} must lie in {'(' if lo_open else '['}{lo:g}, {hi:g}]")
-    return float(v)
-
-
 def _ticks(name, v, dt=0.002) -> float:
     if abs(round(v / dt) * dt - v) > 1e-9:
         raise ValueError(f"{name}={v!r} must be a whole number of {dt:g} s control ticks")
@@ -171,15 +163,15 @@ def make_config(**settings) -> Config:
     for name, lo, hi in (("n_steps", 2, 12), ("qp_max_iter", 1, 200)):
         if isinstance(v[name], bool) or not isinstance(v[name], int) or not lo <= v[name] <= hi:
             raise ValueError(f"{name}={v[name]!r} must be a whole number in [{lo}, {hi}]")
-    v["swing_s"] = _ticks("swing_s", _number("swing_s", v["swing_s"], 0.1, 2.0))
-    v["transfer_s"] = _ticks("transfer_s", _number("transfer_s", v["transfer_s"], 0.0, 1.0))
+    v["swing_s"] = _ticks("swing_s", fmpc.number_in("swing_s", v["swing_s"], 0.1, 2.0))
+    v["transfer_s"] = _ticks("transfer_s", fmpc.number_in("transfer_s", v["transfer_s"], 0.0, 1.0))
     if v["transfer_s"] >= v["swing_s"] + v["transfer_s"] or v["transfer_s"] >= v["swing_s"]:
         raise ValueError(f"transfer_s={v['transfer_s']!r} must be shorter than swing_s={v['swing_s']!r}")
-    v["start_s"] = _number("start_s", v["start_s"], 0.0, 5.0)
-    v["knee_rad"] = _number("knee_rad", v["knee_rad"], 0.1, 1.2)
-    v["friction_coeff"] = _number("friction_coeff", v["friction_coeff"], 0.0, 2.0, lo_open=True)
-    v["startup_s"] = _number("startup_s", v["startup_s"], 0.0, 1.0)
-    v["contact_slack_weight"] = _number("contact_slack_weight", v["contact_slack_weight"], 0.0, 1e8)
+    v["start_s"] = fmpc.number_in("start_s", v["start_s"], 0.0, 5.0)
+    v["knee_rad"] = fmpc.number_in("knee_rad", v["knee_rad"], 0.1, 1.2)
+    v["friction_coeff"] = fmpc.number_in("friction_coeff", v["friction_coeff"], 0.0, 2.0, lo_open=True)
+    v["startup_s"] = fmpc.number_in("startup_s", v["startup_s"], 0.0, 1.0)
+    v["contact_slack_weight"] = fmpc.number_in("contact_slack_weight", v["contact_slack_weight"], 0.0, 1e8)
     bounds = {s.name: s.bounds for s in SETTINGS if s.tunable}
     for name in TUNABLE:
         x = v[name]

@@ -28,7 +28,6 @@ from jaxlp import footsteps as fs
 from jaxlp import icp
 from mjx_coman import wbc
 from mjx_coman.actuators import JOINT_INDEX
-from mjx_coman.controllers import torque
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Telemetry
 from mjx_coman.controllers.footstep_mpc import stepping
 from mjx_coman.controllers.straight_leg import legs as lg
@@ -162,14 +161,7 @@ def step(config: Config, state: State, obs):
     z_acc = jnp.where(single, z_acc, start_acc[2])
     tasks.append(wbc.motion_task(plant.com_jac[2:3], plant.com_bias_acc[2:3], z_acc,
                                  c.com_height_weight * (1.0 - c.straight_legs)))
-    extra = {}
-    if c.fixed_upper_body:
-        extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
-            c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
-    lo, hi = stepping.stall_torque_nm(s.tick.tau_min_nm)
-    qp = wbc.solve(plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,
-                   contact_slack_weight=c.contact_slack_weight or None, **extra)
-    tau_nm = torque.startup_ramp(obs.time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
+    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype)
 
     to_local = stepping.rot2(heading).T
     rel = lambda v: (to_local @ v).astype(dtype)  # noqa: E731
