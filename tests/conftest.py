@@ -49,9 +49,9 @@ SHARED_GROUPS = {
 
 # Groups that take a minute or more on 2 cores (``--durations``), longest first.
 LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "walk-subprocesses", "walks", "torque-walks-footstep-mpc",
-                 "torque-walks-wbc-stand", "tests/mjx_coman/test_env.py", "tests/sweeps/test_sweeps.py",
-                 "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py", "tests/jaxlp/test_simulate.py",
-                 "tests/mjx_coman/test_notebook_02.py", "tests/mjx_coman/test_sensors.py")
+                 "torque-walks-wbc-stand", "torque-walks-straight-leg", "tests/mjx_coman/test_env.py",
+                 "tests/sweeps/test_sweeps.py", "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py",
+                 "tests/jaxlp/test_simulate.py", "tests/mjx_coman/test_notebook_02.py", "tests/mjx_coman/test_sensors.py")
 
 
 @pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the markers into the node ids
