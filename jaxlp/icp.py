@@ -101,7 +101,8 @@ def plan(cmp_m, first_switch_s, step_time_s, omega, transfer_s, split=0.5) -> Pl
     Args:
         cmp_m: (K, 2), K >= 2 (static): the CMP of the current support, then one per planned step; the last
             is where the robot comes to rest (e.g. between its final two feet).
-        first_switch_s: time from now to the first switch (the middle of the next transfer), s.
+        first_switch_s: time from now to the first switch, s; negative: that switch is past (the current
+            segment is then CMP 1, and ``cmp_m[0]`` only shapes the transfer window behind it).
         step_time_s: time between later switches (swing plus transfer), s.
         omega: 1/s.
         transfer_s: smoothing window around each switch, s, shorter than ``step_time_s``.
@@ -113,7 +114,8 @@ def plan(cmp_m, first_switch_s, step_time_s, omega, transfer_s, split=0.5) -> Pl
     cmp_m = jnp.asarray(cmp_m)
     if cmp_m.ndim != 2 or cmp_m.shape[0] < 2 or cmp_m.shape[1] != 2:
         raise ValueError(f"cmp_m must be (K, 2) with K >= 2, got shape {cmp_m.shape}")
-    _check_nonnegative("first_switch_s", first_switch_s)
+    if isinstance(first_switch_s, (int, float)) and not np.isfinite(first_switch_s):
+        raise ValueError(f"first_switch_s={first_switch_s} must be finite")
     _check_positive("step_time_s", step_time_s)
     _check_positive("omega", omega)
     _check_nonnegative("transfer_s", transfer_s)

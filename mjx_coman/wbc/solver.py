@@ -150,7 +150,7 @@ def kkt_residual(Q, q, A, G, h, x, z, y) -> jax.Array:
     return jnp.maximum(stat, comp)
 
 
-def solve_qp(qp: QP, *, float64: bool = False, max_iter: int | None = None):
+def solve_qp(qp: QP, *, float64: bool = False, max_iter: int | None = None, retry_iter: int | None = None):
     """Solve an assembled :class:`~mjx_coman.wbc.qp.QP`: ``(x, info)`` with ``x`` in the QP's dtype.
 
     qpax floors ``s`` and ``z`` at sqrt(eps) (1.5e-8 in float64, 3.5e-4 in float32) before it computes the
@@ -161,15 +161,40 @@ def solve_qp(qp: QP, *, float64: bool = False, max_iter: int | None = None):
     by :func:`kkt_residual`, without the floor. A failed solve (not converged, residuals above
     tolerance, or not finite) gives ``info.ok = False`` and ``x`` with non-finite entries set to zero.
 
+    ``retry_iter`` (static, below ``max_iter``): solve the same QP again stopped after ``retry_iter``
+    iterations and take that solution where the full solve failed. In float32 the interior point can break
+    down late: a straight-leg QP after a push solved at 12 iterations (KKT 4e-3) and was non-finite at 20
+    and 30, its barrier ratios ``z / s`` past what a float32 Cholesky factor holds. Both solves run (a vmap
+    selects), so a retry costs its iterations on every problem.
+
     Args:
         float64: solve in float64 when x64 is enabled (static; see :func:`solve_dtype`).
         max_iter: static iteration cap; by default :data:`TOLERANCES` of the solving dtype.
+        retry_iter: static iteration cap of the retry, or ``None`` (no retry).
+
+    Raises:
+        ValueError: a ``retry_iter`` that is not a whole number in [1, max_iter).
     """
     dtype = qp.Q.dtype
     sdt = solve_dtype(dtype, float64)
     tols = TOLERANCES["float64" if sdt == jnp.float64 else "float32"]
+    n_iter = tols["max_iter"] if max_iter is None else max_iter
+    x, info = _solve_once(qp, sdt, tols, n_iter)
+    if retry_iter is None:
+        return x, info
+    if isinstance(retry_iter, bool) or not isinstance(retry_iter, int) or not 1 <= retry_iter < n_iter:
+        raise ValueError(f"retry_iter={retry_iter!r} must be a whole number in [1, {n_iter})")
+    x2, info2 = _solve_once(qp, sdt, tols, retry_iter)
+    use_first = info.ok | ~info2.ok
+    pick = lambda a, b: jnp.where(use_first, a, b)  # noqa: E731
+    return pick(x, x2), jax.tree_util.tree_map(pick, info, info2)
+
+
+def _solve_once(qp: QP, sdt, tols: dict, max_iter: int):
+    """One qpax solve of ``qp`` in ``sdt`` and its diagnostics (:func:`solve_qp`)."""
+    dtype = qp.Q.dtype
     Q, q, A, b, G, h = (jnp.asarray(a, sdt) for a in (qp.Q, qp.q, qp.A, qp.b, qp.G, qp.h))
-    x, _, z, y, conv, iters = qpax_solve(Q, q, A, b, G, h, QPAX_TOL, tols["max_iter"] if max_iter is None else max_iter)
+    x, _, z, y, conv, iters = qpax_solve(Q, q, A, b, G, h, QPAX_TOL, max_iter)
     x_, z_, y_ = (jax.lax.stop_gradient(v) for v in (x, z, y))
     kkt = kkt_residual(Q, q, A, G, h, x_, z_, y_)
     eq = jnp.max(jnp.abs(qp.eq_scale.astype(sdt) * (A @ x_ - b)))
@@ -190,14 +215,14 @@ def fallback_torque(plant: Plant, tau_min_nm, tau_max_nm) -> jax.Array:
 
 
 def solve(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_max_nm, *, float64: bool = False,
-          max_iter: int | None = None, **build_kw) -> WbcSolution:
+          max_iter: int | None = None, retry_iter: int | None = None, **build_kw) -> WbcSolution:
     """Build (:func:`~mjx_coman.wbc.qp.build_qp`, keywords ``build_kw``) and solve one whole-body QP.
 
     Returns qdd, corner forces and torques of the solution; where ``info.ok`` is False, the fallback:
     ``qdd = 0``, ``forces = 0``, ``tau =`` :func:`fallback_torque` (finite, within the limits).
     """
     qp = build_qp(plant, tasks, contact_mask, tau_min_nm, tau_max_nm, **build_kw)
-    x, info = solve_qp(qp, float64=float64, max_iter=max_iter)
+    x, info = solve_qp(qp, float64=float64, max_iter=max_iter, retry_iter=retry_iter)
     return solution(qp, x, info, fallback_torque(plant, tau_min_nm, tau_max_nm))
 
 

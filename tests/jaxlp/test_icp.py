@@ -84,6 +84,16 @@ def test_the_reference_is_c1_and_integrates_its_own_cmp():
     np.testing.assert_allclose(xi, ref(2.0)[0], atol=2e-4)
 
 
+def test_a_past_switch_is_the_same_plan_seen_later():
+    """Planning from a time after the first switch (negative first_switch_s) gives the reference of the plan
+    made before it, shifted in time: the controller re-plans every tick across a switch."""
+    early = _plan(first_switch_s=0.3)
+    late = icp.plan(early.cmp_m, -0.05, STEP_S, OMEGA, TRANSFER_S)
+    for t in (0.0, 0.02, 0.3, 0.9):
+        for a, b in zip(icp.reference(late, t), icp.reference(early, t + 0.35)):
+            np.testing.assert_allclose(a, b, atol=1e-12)
+
+
 def test_the_reference_cmp_moves_between_the_feet_only_during_transfer():
     p = _plan()
     s = float(p.switch_s[0])
@@ -157,7 +167,7 @@ def test_gradient_of_the_closed_loop_error_wrt_the_feedback_gain_matches_central
     (lambda: icp.plan(jnp.zeros((1, 2)), 0.1, 0.6, OMEGA, 0.2), "cmp_m"),
     (lambda: icp.plan(jnp.zeros((3, 2)), 0.1, 0.6, -1.0, 0.2), "omega"),
     (lambda: icp.plan(jnp.zeros((3, 2)), 0.1, 0.6, OMEGA, 0.7), "transfer_s"),
-    (lambda: icp.plan(jnp.zeros((3, 2)), -0.1, 0.6, OMEGA, 0.2), "first_switch_s"),
+    (lambda: icp.plan(jnp.zeros((3, 2)), float("nan"), 0.6, OMEGA, 0.2), "first_switch_s"),
     (lambda: icp.plan(jnp.zeros((3, 2)), 0.1, 0.6, OMEGA, 0.2, split=1.5), "split"),
     (lambda: icp.cmp_height_deviation_m(2.5, 1.0), "stride_m"),
     (lambda: icp.natural_frequency(0.0), "height_m"),

@@ -39,6 +39,8 @@ SETTINGS = (
     Setting("contact_slack_weight", 0.0, "0: hard stance rows (seed 001), an infeasible tick ends the walk as a "
             "failed solve; w > 0: the stance rows relaxed at a cost w |e|^2, per (m/s^2)^2 (mjx_coman.wbc.qp)"),
     Setting("qp_max_iter", 20, "interior-point iterations of each whole-body QP solve (static; qpax runs them all)"),
+    Setting("qp_retry_iter", 0, "0: off; n: where the solve fails, the same QP stopped after n iterations "
+            "(mjx_coman.wbc.solve_qp's retry: float32 breaks down late on some QPs), static"),
     Setting("n_steps", 5, "footsteps the MPC plans ahead (seed 001: N = 5)"),
     Setting("mpc_solver", "closed-form", "closed-form (equality-only, one linear solve) or qpax (with the "
             "friction bound |mu z0| on the CoM-to-foot distance)"),
@@ -84,7 +86,8 @@ SETTINGS = (
     jax.tree_util.register_dataclass,
     data_fields=[*TUNABLE, "posture_rad", "com_ref_m", "sole_anchor_m"],
     meta_fields=["step_time_s", "double_support_s", "start_s", "knee_rad", "plant", "fixed_upper_body",
-                 "friction_coeff", "startup_s", "contact_slack_weight", "qp_max_iter", "n_steps", "mpc_solver",
+                 "friction_coeff", "startup_s", "contact_slack_weight", "qp_max_iter", "qp_retry_iter", "n_steps",
+                 "mpc_solver",
                  "dt_s"],
 )
 @dataclasses.dataclass(frozen=True)
@@ -129,6 +132,7 @@ class Config:
     startup_s: float
     contact_slack_weight: float
     qp_max_iter: int
+    qp_retry_iter: int
     n_steps: int
     mpc_solver: str
     dt_s: float = 0.002
@@ -155,7 +159,7 @@ def _whole(name, v, lo, hi) -> int:
 def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s: float = 0.6, knee_rad: float = 0.4,
                 plant: str = "torque-ideal", fixed_upper_body: bool = True, friction_coeff: float = 0.7,
                 startup_s: float = 0.05, contact_slack_weight: float = 0.0,
-                qp_max_iter: int = 20, n_steps: int = 5, mpc_solver: str = "closed-form", **tunables) -> Config:
+                qp_max_iter: int = 20, qp_retry_iter: int = 0, n_steps: int = 5, mpc_solver: str = "closed-form", **tunables) -> Config:
     """A validated config (host).
 
     Raises:
@@ -172,6 +176,7 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
         raise ValueError(f"fixed_upper_body={fixed_upper_body!r} must be true or false")
     n_steps = _whole("n_steps", n_steps, 1, 20)
     qp_max_iter = _whole("qp_max_iter", qp_max_iter, 1, 200)
+    qp_retry_iter = _whole("qp_retry_iter", qp_retry_iter, 0, qp_max_iter - 1)
     step_time_s = number_in("step_time_s", step_time_s, 0.2, 1.0)
     dt = 0.002
     if abs(round(step_time_s / dt) * dt - step_time_s) > 1e-9:
@@ -196,5 +201,6 @@ def make_config(step_time_s: float = 0.4, double_support_s: float = 0.0, start_s
                   com_ref_m=jnp.asarray(com, f), sole_anchor_m=jnp.asarray(soles, f), step_time_s=step_time_s,
                   double_support_s=double_support_s, start_s=start_s, knee_rad=knee_rad, plant=plant,
                   fixed_upper_body=fixed_upper_body, friction_coeff=friction_coeff, startup_s=startup_s,
-                  contact_slack_weight=contact_slack_weight, qp_max_iter=qp_max_iter, n_steps=n_steps,
+                  contact_slack_weight=contact_slack_weight, qp_max_iter=qp_max_iter, qp_retry_iter=qp_retry_iter,
+                  n_steps=n_steps,
                   mpc_solver=mpc_solver)

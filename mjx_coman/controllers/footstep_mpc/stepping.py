@@ -191,7 +191,8 @@ def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing
 
 def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype):
     """The whole-body QP of ``tasks`` with the stance ``mask`` (fixed upper body held by a joint PD outside it when
-    the config says so; the stall torque as bounds), and its torques ramped in after the reset: ``(qp, tau)``."""
+    the config says so; the stall torque as bounds; the config's iteration cap, retry and stance-row slack), and
+    its torques ramped in after the reset: ``(qp, tau)``."""
     c = config
     est = s.tick.base
     extra = {}
@@ -200,7 +201,7 @@ def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype):
             c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
     lo, hi = stall_torque_nm(s.tick.tau_min_nm)
     qp = wbc.solve(s.tick.plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,
-                   contact_slack_weight=c.contact_slack_weight or None, **extra)
+                   retry_iter=c.qp_retry_iter or None, contact_slack_weight=c.contact_slack_weight or None, **extra)
     return qp, torque.startup_ramp(time_s, c.dt_s, c.startup_s).astype(dtype) * qp.tau.astype(dtype)
 
 

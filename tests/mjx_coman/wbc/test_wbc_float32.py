@@ -7,9 +7,12 @@ the same float32 data in float64.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 import qpsolvers
 
 import mjx_coman
@@ -53,3 +56,27 @@ def test_float32_solves_agree_with_float64_proxsuite():
         tau, tau_r = one_qp.tau_map @ x[j] + one_qp.tau_offset, one_qp.tau_map @ xr + one_qp.tau_offset
         assert np.max(np.abs(tau - tau_r)) < 2e-3, (j, np.max(np.abs(tau - tau_r)))  # N m
     assert binding >= 10  # some rows bind (single support, 8 N m): not only easy problems
+
+
+def test_a_retry_at_fewer_iterations_rescues_a_late_float32_breakdown():
+    """A straight-leg QP recorded after a push (float32; stance rows relaxed at 1e4): qpax's interior point
+    broke down past 12 iterations on the machine that recorded it. With ``retry_iter=12`` the solve is ok either
+    way: the full solve where it succeeds, else the 12-iteration one, which agrees with proxsuite in float64."""
+    data = np.load(Path(__file__).parent / "data" / "late_breakdown_qp.npz")
+    qp = wbc.QP(**{k: jnp.asarray(data[k]) for k in wbc.QP._fields})
+    full_x, full = wbc.solve_qp(qp, max_iter=20)
+    short_x, short = wbc.solve_qp(qp, max_iter=12)
+    x, info = wbc.solve_qp(qp, max_iter=20, retry_iter=12)
+    assert bool(short.ok) and bool(info.ok)
+    np.testing.assert_array_equal(np.asarray(x), np.asarray(full_x if bool(full.ok) else short_x))
+    xr = qpsolvers.solve_qp(**wbc.export_qp(qp), solver="proxqp", eps_abs=1e-10, eps_rel=0.0)
+    tau, tau_ref = np.asarray(qp.tau_map @ x + qp.tau_offset), np.asarray(qp.tau_map) @ xr + np.asarray(qp.tau_offset)
+    assert np.max(np.abs(tau - tau_ref)) < 0.05  # N m (measured 1.2e-3), of a 33 N m stall torque
+
+
+def test_retry_iter_must_be_below_the_cap():
+    data = np.load(Path(__file__).parent / "data" / "late_breakdown_qp.npz")
+    qp = wbc.QP(**{k: jnp.asarray(data[k]) for k in wbc.QP._fields})
+    for bad in (0, 20, 25, 1.5, True):
+        with pytest.raises(ValueError, match="retry_iter"):
+            wbc.solve_qp(qp, max_iter=20, retry_iter=bad)

@@ -41,3 +41,9 @@ def test_tunables_are_array_leaves_that_replace_reaches():
 def test_bad_settings_are_value_errors_naming_them(kw, name):
     with pytest.raises(ValueError, match=name):
         slc.make_config(**kw)
+
+
+def test_the_qp_retry_stops_before_the_full_solve():
+    assert controllers.default_config("straight-leg").qp_retry_iter == 8
+    with pytest.raises(ValueError, match="qp_retry_iter"):
+        slc.make_config(qp_max_iter=12, qp_retry_iter=12)
