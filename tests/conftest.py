@@ -56,6 +56,11 @@ LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "walk-subprocesses", "w
 
 @pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the markers into the node ids
 def pytest_collection_modifyitems(config, items):
+    import jax
+
+    if jax.config.jax_enable_x64:  # a module that sets it at import changes every later test in its worker
+        raise pytest.UsageError("a test module turned jax_enable_x64 on at import: use `with jax.enable_x64(True):`"
+                                " in a fixture (tests/jaxlp/conftest.py) instead")
     group_of = {f: g for g, files in SHARED_GROUPS.items() for f in files}
     for item in items:
         if item.get_closest_marker("xdist_group") is None:

@@ -7,8 +7,6 @@ import pytest
 
 from jaxlp import icp
 
-jax.config.update("jax_enable_x64", True)
-
 OMEGA = float(np.sqrt(9.81 / 0.5))
 STEP_S, TRANSFER_S = 0.6, 0.2
 FEET = np.array([[0.0, -0.08], [0.15, 0.08], [0.30, -0.08], [0.45, 0.08], [0.60, -0.08]])
