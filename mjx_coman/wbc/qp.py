@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_coman.wbc.contacts import contact_equalities, corner_mask, friction_rows
+from mjx_coman.wbc.contacts import contact_equalities, corner_mask, force_share, friction_rows
 from mjx_coman.wbc.plant import LEG_JOINTS, N_BASE, N_FORCES, Plant, check_plant
 from mjx_coman.wbc.tasks import Task
 
@@ -99,7 +99,8 @@ def _task_rows(task: Task, qdd_map, qdd_offset, force_map):
 
 def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_max_nm, *,
              friction_coeff=DESIGN_FRICTION, min_normal_force_n=0.0, hessian_eps=1e-6,
-             fixed_upper_body: bool = False, upper_acc=None, n_faces: int = 4, contact_slack_weight=None) -> QP:
+             fixed_upper_body: bool = False, upper_acc=None, n_faces: int = 4, contact_slack_weight=None,
+             toe_off=None) -> QP:
     """Assemble the whole-body QP of one state (pure; vmap it for a batch).
 
     Args:
@@ -114,6 +115,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         n_faces: static number of pyramid faces (>= 4).
         contact_slack_weight: ``None`` (hard stance rows) or the weight of the stance-row slacks (module
             docstring), per (m/s^2)^2.
+        toe_off: ``None`` or (2,) 1 for a stance foot on its toe (:mod:`mjx_coman.wbc.contacts`): its heel
+            forces are cut and its pitch freed; needs ``contact_slack_weight``.
 
     Raises:
         ValueError: wrong plant shapes, no tasks, or ``upper_acc`` given or missing against
@@ -127,6 +130,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         raise ValueError("fixed_upper_body=True needs upper_acc, the waist and arm accelerations")
     if not fixed_upper_body and upper_acc is not None:
         raise ValueError("upper_acc is given but fixed_upper_body=False: the upper body is free")
+    if toe_off is not None and contact_slack_weight is None:
+        raise ValueError("toe_off needs contact_slack_weight: a toe-off foot's free pitch is a zero stance row")
     dt = plant.mass.dtype
     free = free_joints(nv, fixed_upper_body)
     n_q = len(free)
@@ -136,16 +141,17 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     qdd_offset = jnp.zeros(nv, dt)
     if fixed_upper_body:
         qdd_offset = qdd_offset.at[n_q:].set(jnp.broadcast_to(jnp.asarray(upper_acc, dt), (nv - n_q,)))
-    force_map = jnp.zeros((N_FORCES, n), dt).at[:, n_q:n_f].set(FORCE_SCALE_N * jnp.eye(N_FORCES, dtype=dt))
+    share = jnp.eye(N_FORCES, dtype=dt) if toe_off is None else force_share(jnp.asarray(toe_off, dt))
+    force_map = jnp.zeros((N_FORCES, n), dt).at[:, n_q:n_f].set(FORCE_SCALE_N * share)
 
     # dynamics (seed 001 eq. 1): M qdd + h - passive - J_c^T (mask f) = S^T tau
     h_eff = plant.bias - plant.passive
-    jc = plant.contact_jac.reshape(N_FORCES, nv) * corner_mask(contact_mask)[:, None].astype(dt)
+    jc = plant.contact_jac.reshape(N_FORCES, nv) * corner_mask(contact_mask, toe_off)[:, None].astype(dt)
     dyn = plant.mass @ qdd_map - jc.T @ force_map  # (nv, n)
     dyn0 = plant.mass @ qdd_offset + h_eff
     tau_map, tau_offset = dyn[N_BASE:], dyn0[N_BASE:]
 
-    c_qdd, c_f, c_rhs = contact_equalities(plant, contact_mask)
+    c_qdd, c_f, c_rhs = contact_equalities(plant, contact_mask, toe_off)
     c_rows = c_qdd @ qdd_map + c_f @ force_map
     c_rhs = c_rhs - c_qdd @ qdd_offset
     stance = jnp.repeat(jnp.asarray(contact_mask), 6) > 0.5
@@ -158,7 +164,7 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
 
     tmin = jnp.broadcast_to(jnp.asarray(tau_min_nm, dt), (nu,))
     tmax = jnp.broadcast_to(jnp.asarray(tau_max_nm, dt), (nu,))
-    fr, fr_rhs = friction_rows(plant.sole_rot, contact_mask, friction_coeff, min_normal_force_n, n_faces)
+    fr, fr_rhs = friction_rows(plant.sole_rot, contact_mask, friction_coeff, min_normal_force_n, n_faces, toe_off)
     G = jnp.concatenate([tau_map / TORQUE_SCALE_NM, -tau_map / TORQUE_SCALE_NM, fr @ force_map / FORCE_SCALE_N])
     h = jnp.concatenate([(tmax - tau_offset) / TORQUE_SCALE_NM, (tau_offset - tmin) / TORQUE_SCALE_NM,
                          fr_rhs / FORCE_SCALE_N])
