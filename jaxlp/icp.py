@@ -16,8 +16,8 @@ array argument. ``omega`` (1/s) is a design parameter (seed 004, sec. II-A), not
   ``r = xi - xid / omega`` moves continuously from one foot to the next during double support.
 * Feedback: ``r_cmp = r_ref + gain (xi - xi_ref)`` with ``r_ref = xi_ref - xid_ref / omega``: the ICP error
   obeys ``ed = omega (1 - gain) e``, so it decays for ``gain > 1``.
-* Step adjustment (beyond seed 004, for pushes): the ICP error predicted at touchdown,
-  ``exp(omega t_rem) (xi - xi_ref)``, moved into the next footstep (:func:`step_adjustment`).
+* Step adjustment (beyond seed 004, for pushes): the ICP error left at touchdown with the CMP held at the
+  edge of its range, moved into the next footstep (:func:`step_adjustment`).
 """
 
 from __future__ import annotations
@@ -179,21 +179,27 @@ def feedback_cmp(icp_m, icp_ref_m, icp_ref_rate_mps, omega, gain) -> jax.Array:
     return icp_ref_m - icp_ref_rate_mps / omega + gain * (icp_m - icp_ref_m)
 
 
-def step_adjustment(icp_m, icp_ref_m, omega, time_to_touchdown_s, adjust_weight, icp_weight, max_offset_m):
-    """Footstep offset ``delta`` (2,) that puts the ICP back on its plan (beyond seed 004; see the module).
+def step_adjustment(icp_m, icp_ref_m, omega, time_to_touchdown_s, cmp_margin_m, adjust_weight, icp_weight,
+                    max_offset_m):
+    """Footstep offset ``delta`` (2,) for the ICP error the CMP cannot take out before touchdown (beyond seed 004).
 
-    The ICP error grows as ``e_td = exp(omega t_rem) (xi - xi_ref)`` until touchdown; moving the next
-    footstep and every later one by ``delta`` moves the plan's ICP by ``delta``. The offset minimises
-    ``adjust_weight |delta|^2 + icp_weight |e_td - delta|^2`` subject to ``|delta_i| <= max_offset_m``
-    per axis: separable with a diagonal Hessian, so the box-constrained minimum is the clipped unconstrained
-    one, ``clip(icp_weight / (adjust_weight + icp_weight) e_td, -max, max)``.
+    With the CMP ``d`` off the plan's, the ICP error obeys ``ed = omega (e - d)`` (eq. 2), so a constant ``d``
+    over the time ``t`` left gives ``e_td = E e - (E - 1) d`` with ``E = exp(omega t)``. The CMP can move at
+    most ``cmp_margin_m`` (per axis, in the frame of the arguments: the stance foot's) toward the error, so the
+    error left at touchdown is ``r = sign(E e) max(|E e| - (E - 1) m, 0)`` per axis: zero while the CMP can
+    null it. Moving the next footstep (and every later one) by ``delta`` moves the plan's ICP at touchdown by
+    ``delta``; the offset minimises ``adjust_weight |delta|^2 + icp_weight |r - delta|^2`` subject to
+    ``|delta_i| <= max_offset_m``: separable with a diagonal Hessian, so the box-constrained minimum is the
+    clipped unconstrained one, ``clip(icp_weight / (adjust_weight + icp_weight) r, -max, max)``.
 
     Returns:
-        ``(delta, e_td)``.
+        ``(delta, r)``.
     """
-    e_td = jnp.exp(omega * jnp.maximum(time_to_touchdown_s, 0.0)) * (icp_m - icp_ref_m)
+    grow = jnp.exp(omega * jnp.maximum(time_to_touchdown_s, 0.0))
+    e_free = grow * (icp_m - icp_ref_m)
+    residual = jnp.sign(e_free) * jnp.maximum(jnp.abs(e_free) - (grow - 1.0) * cmp_margin_m, 0.0)
     share = icp_weight / (adjust_weight + icp_weight)
-    return jnp.clip(share * e_td, -max_offset_m, max_offset_m), e_td
+    return jnp.clip(share * residual, -max_offset_m, max_offset_m), residual
 
 
 def step_cmps(stance_xy, footsteps_xy, n_cmps: int) -> jax.Array:

@@ -212,6 +212,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
     from mjx_coman import rollout as ro
     from mjx_coman import ground_truth as gt
     from mjx_coman import scenarios
+    from mjx_coman.studies.metrics import corner_positions_m, toe_off_fraction
 
     ctrl, config = controllers.load(args.controller_name, args.overrides)
     env_params = ro.plant_env_params(args.gait.plant)
@@ -249,6 +250,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "heading_change_rad": heading_change_rad(res),
         **stance_metrics(res, args.gait.plant),
         **gait_metrics(res, args.gait.control_period_s * 10),
+        "toe_off_fraction": toe_off_fraction(res, corner_positions_m(res.saved["qpos"]), args.scenario.terrain),
         "speed_mps": args.speed,
         "turn_rate_rad_per_s": args.turn_rate,
         "seconds": args.seconds,

@@ -190,7 +190,8 @@ _FM = "mjx_coman.controllers.footstep_mpc"
 register("footstep-mpc", _FM, "seed 001: LIPM footstep MPC with steering over the whole-body QP, ideal torques")
 _SL = "mjx_coman.controllers.straight_leg"
 register("straight-leg", _SL, "seed 004: ICP walking with straight knees in the QP's null space, ideal torques")
+register("straight-leg-no-toe-off", _SL, "straight-leg with both feet flat in transfer", toe_off=False)
 register("bent-knee", _SL, "seed 004's baseline: the same ICP controller holding the crouched CoM height",
          knee_mode="bent")
-register("straight-leg-step-adjust", _SL, "straight-leg moving its footsteps by the ICP error at touchdown",
+register("straight-leg-step-adjust", _SL, "straight-leg moving its footsteps by the ICP error its CMP cannot null",
          step_adjust=True)

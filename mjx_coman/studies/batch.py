@@ -74,10 +74,11 @@ KNEES = (JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"])
 
 def _record(state: ro.RolloutState) -> dict:
     """What each walk saves every ``RECORD_EVERY`` ticks: pelvis, CoM, pelvis yaw, the knees' angles and link
-    torques (no telemetry)."""
+    torques, the sole corners (no telemetry)."""
     full = ro.pelvis_and_com(state)
     d = state.env.data
-    knees = {"knee_rad": d.qpos[7 + np.asarray(KNEES)], "knee_torque_nm": d.ctrl[np.asarray(KNEES)]}
+    knees = {"knee_rad": d.qpos[7 + np.asarray(KNEES)], "knee_torque_nm": d.ctrl[np.asarray(KNEES)],
+             "corners_m": d.site_xpos[np.asarray(metrics.corner_sites())].reshape(2, 4, 3)}
     return {**{k: full[k] for k in ("pelvis_m", "com_m", "pelvis_yaw_rad")}, **knees}
 
 
@@ -168,7 +169,8 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
             period = float(ctrl.gait(config).control_period_s)
             for j, i in enumerate(part):
                 one = jax.tree_util.tree_map(lambda x: x[j], res)
-                out[i] = metrics.summary(one, pushed=rows[i].push_ns > 0, record_period_s=period * RECORD_EVERY)
+                out[i] = metrics.summary(one, pushed=rows[i].push_ns > 0, record_period_s=period * RECORD_EVERY,
+                                         terrain=terrain)
             done += len(part)
             if progress is not None:
                 progress(done)

@@ -78,9 +78,64 @@ def knee_metrics(res, knee_rad, knee_torque_nm, record_period_s: float, after_s:
     return out
 
 
-def summary(res, pushed: bool = False, record_period_s: float | None = None) -> dict:
-    """The figures of one walk: verdict, mean speed, heading change, CoM-velocity cycle and (key ``series``,
-    NumPy arrays for plots) time, CoM velocity, CoM position and yaw."""
+TOE_CONTACT_M = 0.004  # a front corner this close to the ground touches it (the contact spheres' sites)
+HEEL_LIFT_M = 0.008  # the heel this far above the front corners: the foot has rolled onto its toe
+
+
+def corner_sites() -> tuple[int, ...]:
+    """MuJoCo site ids of the sole corners, (right, left) x :data:`mjx_coman.mjcf.FOOT_CORNERS` (8,)."""
+    import mujoco
+
+    import mjx_coman
+    from mjx_coman.mjcf import FOOT_CORNERS
+
+    model = mjx_coman.load_model()
+    return tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{side}_foot_{c}") for side in ("r", "l")
+                 for c in FOOT_CORNERS)
+
+
+def corner_positions_m(qpos) -> np.ndarray:
+    """(n, 2, 4, 3) sole corners of the poses ``qpos`` (n, nq) by MuJoCo's kinematics."""
+    import mujoco
+
+    import mjx_coman
+
+    model = mjx_coman.load_model()
+    data = mujoco.MjData(model)
+    ids = list(corner_sites())
+    out = []
+    for q in np.asarray(qpos, np.float64):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        out.append(data.site_xpos[ids].reshape(2, 4, 3).copy())
+    return np.asarray(out).reshape(-1, 2, 4, 3)
+
+
+def toe_off_fraction(res, corners_m, terrain: str = "flat", after_s: float = KNEE_AFTER_S) -> float | None:
+    """Fraction of steps, past ``after_s`` and before any fall, in which the trailing foot rolled onto its toe
+    (ground truth, from the recorded sole corners ``corners_m`` (n_rec, 2, 4, 3), right foot first): between a
+    touchdown and the next, some record has the trailing foot's front corners within :data:`TOE_CONTACT_M` of
+    the terrain and its heel corners :data:`HEEL_LIFT_M` above them. ``None`` without such steps."""
+    from mjx_coman.ground_truth import RIGHT
+    from mjx_coman.scenarios.terrain import terrain_height_m
+
+    corners = np.asarray(corners_m, np.float64)
+    ground = np.asarray(terrain_height_m(terrain, corners[..., 0], corners[..., 1]), np.float64)
+    z = corners[..., 2] - ground  # (n_rec, 2, 4): front left, front right, heel left, heel right
+    rolled_now = (z[..., :2].min(-1) < TOE_CONTACT_M) & (z[..., 2:].mean(-1) > z[..., :2].mean(-1) + HEEL_LIFT_M)
+    t = np.asarray(res.time_s)
+    end = float(res.fall_time_s) if bool(res.fell) else np.inf
+    k = int(res.touchdowns)
+    td, foot = np.asarray(res.log.time_s)[:k], np.asarray(res.log.foot)[:k]
+    rolled = [bool(np.any(rolled_now[(t >= a) & (t < b), 1 if f == RIGHT else 0]))  # the foot that did not land
+              for a, b, f in zip(td[:-1], td[1:], foot[:-1]) if a > after_s and b <= end]
+    return float(np.mean(rolled)) if rolled else None
+
+
+def summary(res, pushed: bool = False, record_period_s: float | None = None, terrain: str = "flat") -> dict:
+    """The figures of one walk: verdict, mean speed, heading change, CoM-velocity cycle, the knee figures and the
+    toe-off fraction where the records have them, and (key ``series``, NumPy arrays for plots) time, CoM
+    velocity, CoM position and yaw."""
     fell = bool(res.fell)
     s2r = int(res.steps_to_recover)
     t, v = com_velocity_mps(res)
@@ -90,6 +145,8 @@ def summary(res, pushed: bool = False, record_period_s: float | None = None) -> 
         knees = knee_metrics(res, res.saved["knee_rad"], res.saved["knee_torque_nm"], record_period_s)
         z = np.asarray(res.saved["com_m"])[:, 2][alive & (np.asarray(res.time_s) > KNEE_AFTER_S)]
         knees["com_height_m"] = {"min": float(z.min()), "mean": float(z.mean()), "max": float(z.max())} if len(z) else None
+    if "corners_m" in res.saved:
+        knees["toe_off_fraction"] = toe_off_fraction(res, res.saved["corners_m"], terrain)
     return {
         "fell": fell,
         "fall_time_s": float(res.fall_time_s) if fell else None,

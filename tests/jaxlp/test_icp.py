@@ -124,18 +124,35 @@ def test_feedback_makes_the_closed_loop_lip_converge(gain):
     assert np.linalg.norm(e) < 0.2 * np.linalg.norm(e0)
 
 
-def test_step_adjustment_is_the_clipped_weighted_icp_error_at_touchdown():
+def test_step_adjustment_is_the_clipped_weighted_error_the_cmp_cannot_null():
     xi, xi_ref = jnp.array([0.05, 0.0]), jnp.array([0.03, 0.01])
-    delta, e_td = icp.step_adjustment(xi, xi_ref, OMEGA, 0.2, 1.0, 3.0, 0.1)
-    np.testing.assert_allclose(e_td, np.exp(OMEGA * 0.2) * np.array([0.02, -0.01]))
-    np.testing.assert_allclose(delta, 0.75 * e_td)
+    # no CMP range: the whole error grown to touchdown
+    delta, r = icp.step_adjustment(xi, xi_ref, OMEGA, 0.2, 0.0, 1.0, 3.0, 0.1)
+    np.testing.assert_allclose(r, np.exp(OMEGA * 0.2) * np.array([0.02, -0.01]), rtol=1e-12)
+    np.testing.assert_allclose(delta, 0.75 * r, rtol=1e-12)
     # the box-constrained minimum: no feasible offset has a lower cost
-    big, _ = icp.step_adjustment(xi, xi_ref, OMEGA, 0.6, 1.0, 3.0, 0.05)
+    big, e_big = icp.step_adjustment(xi, xi_ref, OMEGA, 0.6, 0.0, 1.0, 3.0, 0.05)
     assert float(big[0]) == pytest.approx(0.05)
     cost = lambda d, e: 1.0 * np.sum(d**2) + 3.0 * np.sum((e - d) ** 2)  # noqa: E731
-    _, e_big = icp.step_adjustment(xi, xi_ref, OMEGA, 0.6, 1.0, 3.0, 0.05)
     grid = np.stack(np.meshgrid(np.linspace(-0.05, 0.05, 41), np.linspace(-0.05, 0.05, 41)), -1).reshape(-1, 2)
     assert cost(np.asarray(big), np.asarray(e_big)) <= min(cost(g, np.asarray(e_big)) for g in grid) + 1e-12
+
+
+@pytest.mark.parametrize("t_rem", [0.05, 0.3, 0.6])
+def test_the_residual_is_what_an_icp_with_its_cmp_at_the_margin_keeps_at_touchdown(t_rem):
+    """Integrate eq. 2 for the error with the CMP offset pushed to the margin toward it (never past zero)."""
+    e0, margin = np.array([0.02, -0.004]), np.array([0.03, 0.01])
+    _, r = icp.step_adjustment(jnp.asarray(e0), jnp.zeros(2), OMEGA, t_rem, jnp.asarray(margin), 1.0, 1.0, 1.0)
+    n = 20000
+    dt, e = t_rem / n, e0.copy()
+    for _ in range(n):  # the best the CMP can do: d = clip(e / (1 - exp(-omega t_left)), -m, m) nulls e exactly
+        e = e + dt * OMEGA * (e - np.sign(e) * margin)
+        e = np.where(np.sign(e) != np.sign(e0), 0.0, e)
+    np.testing.assert_allclose(r, e, atol=2e-5)
+    if t_rem >= 0.3:  # 4 mm lateral error, 1 cm CMP range: nulled given the time, and no step moves for it
+        assert float(r[1]) == 0.0
+    else:
+        assert float(r[1]) < 0.0
 
 
 def test_gradient_of_the_closed_loop_error_wrt_the_feedback_gain_matches_central_differences():

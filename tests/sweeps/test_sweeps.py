@@ -284,7 +284,8 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
     (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
     (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],  # 8 directions by default
      [(c, "mjx", 2 * 8 * 4, 96) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc",
-                                              "straight-leg", "bent-knee", "straight-leg-step-adjust")]),
+                                          "straight-leg", "straight-leg-no-toe-off", "bent-knee",
+                                          "straight-leg-step-adjust")]),
     (["compare", "--model", "mjx", "--controllers", "dlqr"], [("dlqr", "mjx", 2 * 8 * 2 * 3, 96)]),
     (["compare", "--model", "mjx", "--controllers", "dlqr", "--direction", "45", "--chunk", "8", "--repeats", "1"],
      [("dlqr", "mjx", 2 * 3, 8)]),

@@ -189,15 +189,15 @@ def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing
     return jnp.concatenate([lin, ang]), base_acc, error
 
 
-def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype):
+def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype, toe_off=None):
     """The whole-body QP of ``tasks`` with the stance ``mask`` (fixed upper body held by a joint PD outside it when
-    the config says so; the stall torque as bounds; the config's iteration cap, retry and stance-row slack), and
-    its torques ramped in after the reset: ``(qp, tau)``."""
+    the config says so; the stall torque as bounds; the config's iteration cap, retry and stance-row slack; the
+    feet in ``toe_off``, :mod:`mjx_coman.wbc.contacts`), and its torques ramped in after the reset: ``(qp, tau)``."""
     c = config
     est = s.tick.base
-    extra = {}
+    extra = {} if toe_off is None else {"toe_off": toe_off}
     if c.fixed_upper_body:
-        extra = dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
+        extra |= dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
             c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))
     lo, hi = stall_torque_nm(s.tick.tau_min_nm)
     qp = wbc.solve(s.tick.plant, tasks, mask, lo, hi, friction_coeff=c.friction_coeff, max_iter=c.qp_max_iter,

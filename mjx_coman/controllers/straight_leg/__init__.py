@@ -3,12 +3,14 @@
 ICP planning over constant CMPs and ICP feedback (:mod:`jaxlp.icp`), the momentum-based whole-body QP with only
 the x-y linear momentum rate prescribed (:mod:`mjx_coman.wbc`, seed 004 eq. 5-8), the privileged straight-knee
 configuration in the null space of the tasks (eq. 9-10) set per leg by the state machine of Fig. 5
-(:mod:`.legs`), seed 001's swing-foot and pelvis trajectories. The robot's own sensors only; fixed step timing.
+(:mod:`.legs`), toe-off of the trailing foot in transfer (sec. IV, :mod:`.toe_off`), seed 001's swing-foot and
+pelvis trajectories. The robot's own sensors only; fixed step timing.
 
-Modules: :mod:`.config` (settings, config pytree), :mod:`.legs` (state machine), :mod:`.controller`
-(``init``/``step``). Variants (registered in :mod:`mjx_coman.controllers`): ``straight-leg``, ``bent-knee``
-(``knee_mode=bent``: a CoM height task at the crouched stance instead of the null-space straightening) and
-``straight-leg-step-adjust`` (``step_adjust=true``).
+Modules: :mod:`.config` (settings, config pytree), :mod:`.legs` (state machine), :mod:`.toe_off` (the criteria
+of Fig. 6), :mod:`.controller` (``init``/``step``). Variants (registered in :mod:`mjx_coman.controllers`):
+``straight-leg``, ``straight-leg-no-toe-off`` (``toe_off=false``), ``bent-knee`` (``knee_mode=bent``: a CoM
+height task at the crouched stance instead of the null-space straightening) and ``straight-leg-step-adjust``
+(``step_adjust=true``).
 """
 
 from mjx_coman.controllers.base import Controller, Gait

@@ -39,8 +39,10 @@ OWN = (
             "scaled)"),
     Setting("knee_mode", "straight", "straight: the privileged straight knee in the QP's null space, vertical force "
             "free (seed 004); bent: a CoM height task at the crouched stance instead (the baseline)"),
-    Setting("step_adjust", False, "move the next footstep (and the later ones) by the ICP error predicted at "
-            "touchdown (beyond seed 004: jaxlp.icp.step_adjustment)"),
+    Setting("step_adjust", False, "move the next footstep (and the later ones) by the ICP error the CMP cannot "
+            "null before touchdown (beyond seed 004: jaxlp.icp.step_adjustment)"),
+    Setting("toe_off", True, "roll the trailing foot onto its toe in transfer when the criteria of seed 004 "
+            "Fig. 6 hold (sec. IV; :mod:`.toe_off`): one contact point, foot pitch free"),
     Setting("n_steps", 4, "footsteps the ICP plan looks ahead (static)"),
     Setting("momentum_weight", 0.12, "weight of the linear x-y momentum-rate rows (seed 004 eq. 6, 8), 1/N^2 "
             "(0.12: about footstep-mpc's CoM weight of 100 per (m/s^2)^2 on COMAN's 28.9 kg)", True, (0.0, None)),
@@ -67,6 +69,20 @@ OWN = (
             True, (0.0, None)),
     Setting("privileged_weight", 1.0, "weight of the null-space privileged objective (seed 004 eq. 10)", True,
             (0.0, None)),
+    Setting("toe_off_delay_s", 0.06, "toe-off: not before this time into the transfer, s (the clock's touchdown "
+            "is not sensed: the leading foot must have landed)", True, (0.0, 1.0)),
+    Setting("toe_off_icp_distance_m", 0.15, "toe-off: largest distance of the desired and estimated ICP from "
+            "the leading foot's centre, m", True, (0.0, 0.5)),
+    Setting("toe_off_cop_distance_m", 0.06, "toe-off: largest distance of the trailing foot's CoP (last tick's "
+            "QP forces) from its toe point, m (the sole is 0.20 long)", True, (0.0, 0.3)),
+    Setting("toe_off_load_fraction", 0.2, "toe-off: a trailing foot carrying less than this fraction of the "
+            "weight (last tick's QP forces) passes the CoP check: rolling it onto its toe changes little", True,
+            (0.0, 1.0)),
+    Setting("toe_off_cmp_distance_m", 0.03, "toe-off: largest distance of the desired CMP from the toe-off "
+            "support polygon, m", True, (0.0, 0.3)),
+    Setting("adjust_cmp_margin_x_m", 0.06, "step adjustment: the CMP's range forward and back of the stance foot's "
+            "centre that the ICP feedback may use before a step moves, m (the sole reaches 0.10)", True, (0.0, 0.1)),
+    Setting("adjust_cmp_margin_y_m", 0.03, "the same sideways, m (the sole reaches 0.05)", True, (0.0, 0.05)),
     Setting("adjust_weight", 1.0, "step adjustment: weight of the footstep offset", True, (0.0, None)),
     Setting("adjust_icp_weight", 4.0, "step adjustment: weight of the ICP error left at touchdown", True,
             (0.0, None)),
@@ -86,7 +102,8 @@ TUNABLE = tuple(s.name for s in SETTINGS if s.tunable)
 STATIC = tuple(s.name for s in SETTINGS if not s.tunable)
 
 
-SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on"}  # settings held as 0/1 array leaves
+# settings held as 0/1 array leaves
+SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on", "toe_off": "toe_off_on"}
 
 
 @functools.partial(
@@ -97,7 +114,8 @@ SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on"}  # se
 @dataclasses.dataclass(frozen=True)
 class Config:
     """Array leaves (the tunables, named as the settings, and the variants' switches ``straight_legs`` and
-    ``step_adjust_on``, 1 or 0, so that every variant has one tree structure and batches with the others), the
+    ``step_adjust_on`` and ``toe_off_on``, 1 or 0, so that every variant has one tree structure and batches
+    with the others), the
     stance's references, and the static choices (``(name, value)`` pairs). All are read as attributes."""
 
     leaves: dict
@@ -161,7 +179,7 @@ def make_config(**settings) -> Config:
         raise ValueError(f"plant={v['plant']!r} must be torque-ideal or torque-sea")
     if v["knee_mode"] not in KNEE_MODES:
         raise ValueError(f"knee_mode={v['knee_mode']!r} must be one of {', '.join(KNEE_MODES)}")
-    for name in ("fixed_upper_body", "step_adjust"):
+    for name in ("fixed_upper_body", "step_adjust", "toe_off"):
         if not isinstance(v[name], bool):
             raise ValueError(f"{name}={v[name]!r} must be true or false")
     for name, lo, hi in (("n_steps", 2, 12), ("qp_max_iter", 1, 200), ("qp_retry_iter", 0, None)):
@@ -177,6 +195,9 @@ def make_config(**settings) -> Config:
     v["friction_coeff"] = fmpc.number_in("friction_coeff", v["friction_coeff"], 0.0, 2.0, lo_open=True)
     v["startup_s"] = fmpc.number_in("startup_s", v["startup_s"], 0.0, 1.0)
     v["contact_slack_weight"] = fmpc.number_in("contact_slack_weight", v["contact_slack_weight"], 0.0, 1e8)
+    if v["contact_slack_weight"] == 0:  # every variant builds the toe-off rows (one structure), which need slack
+        raise ValueError("contact_slack_weight=0 (hard stance rows) is not possible in straight-leg: the toe-off "
+                         "rows free the foot pitch with a zero stance row, which needs slack")
     bounds = {s.name: s.bounds for s in SETTINGS if s.tunable}
     for name in TUNABLE:
         x = v[name]
@@ -193,5 +214,6 @@ def make_config(**settings) -> Config:
     leaves = {k: jnp.asarray(v[k], f) for k in TUNABLE}
     leaves["straight_legs"] = jnp.asarray(1.0 if v["knee_mode"] == "straight" else 0.0, f)
     leaves["step_adjust_on"] = jnp.asarray(1.0 if v["step_adjust"] else 0.0, f)
+    leaves["toe_off_on"] = jnp.asarray(1.0 if v["toe_off"] else 0.0, f)
     statics = tuple((k, v[k]) for k in STATIC if k not in SWITCHES)
     return Config(leaves, jnp.asarray(q, f), jnp.asarray(com, f), jnp.asarray(soles, f), statics)

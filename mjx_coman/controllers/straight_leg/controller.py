@@ -6,15 +6,19 @@ base on the stance sole, fixed step timing): the reference footsteps from the jo
 foot and each planned footstep, smoothed through every transfer (:func:`jaxlp.icp.plan`); the desired CMP by ICP
 feedback on the estimated CoM state (:func:`jaxlp.icp.feedback_cmp`) and from it the desired linear momentum
 rate ``m omega^2 (x - r_cmp)``, only its x-y rows as a task (eq. 6, 8). With ``step_adjust`` the next footstep
-and the later ones move by the ICP error predicted at touchdown (:func:`jaxlp.icp.step_adjustment`) and the
-feedback tracks the moved plan. The swing foot and the pelvis follow seed 001's trajectory layer. The vertical
+and the later ones move by the ICP error that the CMP, held at the edge of its range in the stance foot, would
+leave at touchdown (:func:`jaxlp.icp.step_adjustment`); the feedback tracks the nominal plan. The swing foot and the pelvis follow seed 001's trajectory layer. The vertical
 force is free: ``knee_mode="straight"`` adds the privileged knee angles of :mod:`.legs` as joint accelerations
 ``kp (q_p - q) - kd qd`` (eq. 9, damping opposing the velocity) projected into the null space of the task
 Jacobian ``[S A; J_pelvis; J_swing]`` (eq. 10; ``mjx_coman.wbc.null_space_task``, an SVD pseudo-inverse with
 a cut-off, finite at a straight knee); ``knee_mode="bent"`` holds the crouched CoM height by a task instead.
 
-Not built yet (issue 18): toe-off (sec. IV), the late-touchdown handling (sec. III-B) and step timing
-adjustment; touchdown is the fixed clock's.
+Toe-off (sec. IV): in each transfer the trailing foot rolls onto its toe point once the criteria of Fig. 6
+hold (:mod:`.toe_off`; the CoP is the last tick's), its pitch left free in the QP (:mod:`mjx_coman.wbc.contacts`);
+its swing then starts from the pose at lift-off.
+
+Not built yet (issue 18): the late-touchdown handling (sec. III-B) and step timing adjustment; touchdown is
+the fixed clock's.
 """
 
 from __future__ import annotations
@@ -31,8 +35,10 @@ from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Telemetry
 from mjx_coman.controllers.footstep_mpc import stepping
 from mjx_coman.controllers.straight_leg import legs as lg
+from mjx_coman.controllers.straight_leg import toe_off as to
 from mjx_coman.controllers.straight_leg.config import Config
 from mjx_coman.env import MID_FOOT_AHEAD_M, MODE_TORQUE, Command
+from mjx_coman.wbc.contacts import TOE_CORNERS
 from mjx_coman.wbc.plant import N_BASE
 
 KNEES = (JOINT_INDEX["RKneeSag"], JOINT_INDEX["LKneeSag"])
@@ -41,10 +47,14 @@ GRAVITY_MPS2 = 9.81
 
 
 class State(NamedTuple):
-    """The walk's bookkeeping and the legs' states."""
+    """The walk's bookkeeping, the legs' states, toe-off (1 while the trailing foot is on its toe in this
+    transfer), and each foot's CoP (world x-y) and normal force under the last tick's QP forces."""
 
     walk: stepping.WalkState
     legs: lg.LegState
+    toe: jax.Array
+    cop_m: jax.Array
+    load_n: jax.Array
 
 
 class Extra(NamedTuple):
@@ -62,10 +72,26 @@ class Extra(NamedTuple):
     cmp_m: jax.Array  # (2,) desired CMP, world
     step_offset_m: jax.Array  # (2,) step adjustment (0 without it)
     swing_error_m: jax.Array
+    toe_off: jax.Array  # 1 while the trailing foot is on its toe
+
+
+# the sole corners in order around the sole (mjx_coman.mjcf.FOOT_CORNERS: upper_left, upper_right, lower_left,
+# lower_right)
+AROUND = (0, 1, 3, 2)
 
 
 def init(config: Config, env_params, key) -> State:
-    return State(stepping.init_walk(config), lg.init(config.knee_rad, config.com_ref_m.dtype))
+    f = config.com_ref_m.dtype
+    return State(stepping.init_walk(config), lg.init(config.knee_rad, f), jnp.zeros((), f),
+                 config.sole_anchor_m[:, :2], jnp.zeros(2, f))
+
+
+def centre_of_pressure(forces, contact_pos, fallback):
+    """(2, 2): each foot's CoP from its corner forces (2, 4, 3); ``fallback`` (2, 2) where it carries < 1 N."""
+    fz = jnp.maximum(forces[..., 2], 0.0)
+    total = jnp.sum(fz, axis=1)
+    cop = jnp.einsum("fc,fci->fi", fz, contact_pos[..., :2]) / jnp.maximum(total, 1e-9)[:, None]
+    return jnp.where((total > 1.0)[:, None], cop, fallback)
 
 
 def omega(config: Config):
@@ -109,18 +135,39 @@ def step(config: Config, state: State, obs):
     xi = icp.capture_point(plant.com[:2], plant.com_vel[:2], w)
     nominal = icp_plan(c, walk, s, ref.footsteps_m, prev_xy)
     xi_nom, _, _ = icp.reference(nominal, 0.0)
-    offset, _ = icp.step_adjustment(xi, xi_nom, w, T - t_in, c.adjust_weight, c.adjust_icp_weight,
-                                    c.max_adjustment_m)
-    offset = jnp.where(single, c.step_adjust_on * offset, 0.0)
+    # step adjustment, in the stance foot's frame: the ICP error the CMP cannot null before touchdown
+    to_foot = stepping.rot2(heading).T
+    margin = jnp.stack([c.adjust_cmp_margin_x_m, c.adjust_cmp_margin_y_m])
+    offset, _ = icp.step_adjustment(to_foot @ xi, to_foot @ xi_nom, w, T - t_in, margin, c.adjust_weight,
+                                    c.adjust_icp_weight, c.max_adjustment_m)
+    offset = jnp.where(single, c.step_adjust_on * (to_foot.T @ offset), 0.0)
     footsteps = ref.footsteps_m.at[1:].add(offset)
-    plan = icp_plan(c, walk, s, footsteps, prev_xy)
-    xi_ref, xid_ref, _ = icp.reference(plan, 0.0)
+    # the CMP feedback tracks the nominal plan: the adjustment assumed the CMP at its margin till touchdown
+    xi_ref, xid_ref, _ = icp.reference(nominal, 0.0)
     cmp = icp.feedback_cmp(xi, xi_ref, xid_ref, w, c.icp_gain)
 
     # momentum rate: m omega^2 (x - r_cmp) while walking, the start's CoM shift before
     start_acc = stepping.start_com_acc(c, plant, time_s)
     acc_xy = jnp.where(single, icp.lip_com_acceleration(plant.com[:2], cmp, w), start_acc[:2])
     hdot = jnp.concatenate([mass * acc_xy, jnp.zeros(4, f)])
+
+    # toe-off of the trailing (swing) foot in transfer (sec. IV): on once the criteria of Fig. 6 hold
+    transfer = single & (t_in < c.transfer_s)
+    toe_xy = jnp.mean(plant.contact_pos[swing, jnp.asarray(TOE_CORNERS), :2], axis=0)
+    crit = to.criteria(xi_ref, xi, cmp, state.cop_m[swing], toe_xy, plant.contact_pos[stance, jnp.asarray(AROUND), :2],
+                       stance_xy, icp_distance_m=c.toe_off_icp_distance_m, cop_distance_m=c.toe_off_cop_distance_m,
+                       cmp_distance_m=c.toe_off_cmp_distance_m)
+    toe = jnp.where(s.new, 0.0, state.toe)
+    light = state.load_n[swing] < c.toe_off_load_fraction * mass * GRAVITY_MPS2
+    crit = crit._replace(cop_near_toe=crit.cop_near_toe | light)
+    may = crit.all & (t_in >= c.toe_off_delay_s)
+    toe = jnp.where(transfer, jnp.maximum(toe, c.toe_off_on * may.astype(f)), 0.0)
+    toe_off = jax.nn.one_hot(swing, 2, dtype=f) * toe
+    # the swing starts from the pose at lift-off (pitched after a toe-off)
+    lift = single & (t_in >= c.transfer_s) & (t_in - c.dt_s < c.transfer_s)
+    feet_quat = est.data.xquat[jnp.asarray(stepping.foot_body_ids())]
+    walk = walk._replace(swing_start_m=jnp.where(lift, s.sole_pos[swing], walk.swing_start_m),
+                         swing_start_quat=jnp.where(lift, feet_quat[swing], walk.swing_start_quat))
 
     # swing foot and pelvis (seed 001's trajectory layer)
     yaw_next = heading + s.turn * T
@@ -161,7 +208,8 @@ def step(config: Config, state: State, obs):
     z_acc = jnp.where(single, z_acc, start_acc[2])
     tasks.append(wbc.motion_task(plant.com_jac[2:3], plant.com_bias_acc[2:3], z_acc,
                                  c.com_height_weight * (1.0 - c.straight_legs)))
-    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype)
+    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype, toe_off=toe_off)
+    cop = centre_of_pressure(qp.forces, plant.contact_pos, state.cop_m)
 
     to_local = stepping.rot2(heading).T
     rel = lambda v: (to_local @ v).astype(dtype)  # noqa: E731
@@ -177,7 +225,8 @@ def step(config: Config, state: State, obs):
         extra=Extra(qp.info.iterations, qp.info.kkt_residual.astype(dtype),
                     qp.info.eq_residual.astype(dtype), qp.info.ineq_violation.astype(dtype), legs.mode, knee_p.astype(dtype),
                     knees.astype(dtype), xi.astype(dtype), xi_ref.astype(dtype), cmp.astype(dtype),
-                    offset.astype(dtype), swing_error.astype(dtype)),
+                    offset.astype(dtype), swing_error.astype(dtype), toe.astype(dtype)),
         ok=qp.info.ok,
     )
-    return State(walk, legs), Command(tau_nm, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32)), tel
+    load = jnp.sum(jnp.maximum(qp.forces[..., 2], 0.0), axis=1)
+    return State(walk, legs, toe, cop.astype(f), load.astype(f)), Command(tau_nm, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32)), tel

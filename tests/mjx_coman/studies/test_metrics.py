@@ -79,3 +79,41 @@ def test_knee_metrics_read_the_stance_knee_at_mid_stance_and_the_knee_torque_and
     res.fell, res.fall_time_s = True, 1.5  # nothing after the start before the fall
     assert metrics.knee_metrics(res, qpos[:, [r, l]], tau[:, [r - 7, l - 7]], 0.02) == {"stance_knee_mid_rad": None, "mean_abs_knee_torque_nm": None,
                                            "mean_abs_knee_power_w": None}
+
+
+def test_toe_off_fraction_counts_steps_whose_trailing_heel_rose_on_its_toe():
+    """Synthetic corners: touchdowns every 0.6 s alternating right, left; in every other step the trailing
+    foot pitches heel-up about its front edge (toes on the ground), in the others it lifts flat."""
+    from types import SimpleNamespace
+
+    from mjx_coman.ground_truth import LEFT, RIGHT
+
+    t = np.arange(1, 501) * 0.02
+    td = np.arange(0.3, 10.0, 0.6)
+    foot = np.where(np.arange(len(td)) % 2 == 0, RIGHT, LEFT)
+    corners = np.zeros((len(t), 2, 4, 3))
+    corners[..., 2] = 0.001  # every corner on the ground
+    k = np.searchsorted(td, t, side="right") - 1
+    late = (k >= 0) & (t - td[np.clip(k, 0, None)] > 0.1) & (t - td[np.clip(k, 0, None)] < 0.2)
+    for i in np.flatnonzero(late):
+        trailing = 1 if foot[k[i]] == RIGHT else 0  # corners: right foot first
+        if k[i] % 2 == 0:
+            corners[i, trailing, 2:, 2] = 0.02  # heel up, toes down: toe-off
+        else:
+            corners[i, trailing, :, 2] = 0.02  # the whole foot up: a flat lift-off
+    res = SimpleNamespace(time_s=t, fell=False, fall_time_s=np.inf, touchdowns=len(td),
+                          log=SimpleNamespace(time_s=td, foot=foot))
+    assert metrics.toe_off_fraction(res, corners, after_s=1.0) == pytest.approx(0.5, abs=0.07)
+    # the same feet on the third step of stairs:8 (x 0.9-1.2, top 0.24 m): measured from the terrain
+    corners[..., 0], corners[..., 2] = 1.05, corners[..., 2] + 0.24
+    assert metrics.toe_off_fraction(res, corners, "stairs:8", after_s=1.0) == pytest.approx(0.5, abs=0.07)
+    assert metrics.toe_off_fraction(res, corners, after_s=1.0) == 0.0  # on flat ground they would float
+
+
+def test_corner_positions_match_the_standing_robot_on_the_floor():
+    import mjx_coman
+
+    q = mjx_coman.load_model().qpos0.copy()
+    c = metrics.corner_positions_m(q[None])
+    assert c.shape == (1, 2, 4, 3)
+    np.testing.assert_allclose(c[0, 0, 0, :2] - c[0, 0, 2, :2], [0.20, 0.0], atol=0.02)  # toe 0.20 ahead of heel

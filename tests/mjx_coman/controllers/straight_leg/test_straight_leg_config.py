@@ -9,11 +9,13 @@ from mjx_coman.controllers.straight_leg import config as slc
 
 
 def test_variants_share_one_tree_structure_and_differ_by_their_switches():
-    cfgs = {n: controllers.default_config(n) for n in ("straight-leg", "bent-knee", "straight-leg-step-adjust")}
+    names = ("straight-leg", "straight-leg-no-toe-off", "bent-knee", "straight-leg-step-adjust")
+    cfgs = {n: controllers.default_config(n) for n in names}
     trees = {jax.tree_util.tree_structure(c) for c in cfgs.values()}
     assert len(trees) == 1  # one compiled batch for the family
     assert float(cfgs["straight-leg"].straight_legs) == 1 and float(cfgs["bent-knee"].straight_legs) == 0
     assert float(cfgs["straight-leg"].step_adjust_on) == 0 and float(cfgs["straight-leg-step-adjust"].step_adjust_on) == 1
+    assert float(cfgs["straight-leg"].toe_off_on) == 1 and float(cfgs["straight-leg-no-toe-off"].toe_off_on) == 0
 
 
 def test_timing_is_atlas_scaled_by_the_square_root_of_the_leg_length():
@@ -36,7 +38,7 @@ def test_tunables_are_array_leaves_that_replace_reaches():
     ({"knee_mode": "crouched"}, "knee_mode"), ({"icp_gain": 1.0}, "icp_gain"), ({"icp_gain": float("nan")}, "icp_gain"),
     ({"swing_s": 0.401}, "swing_s"), ({"transfer_s": 0.5}, "transfer_s"), ({"n_steps": 1}, "n_steps"),
     ({"plant": "position"}, "plant"), ({"step_adjust": "yes"}, "step_adjust"), ({"icp_height_m": -1.0}, "icp_height_m"),
-    ({"bogus": 1.0}, "bogus"),
+    ({"toe_off": 1}, "toe_off"), ({"contact_slack_weight": 0.0}, "contact_slack_weight"), ({"bogus": 1.0}, "bogus"),
 ])
 def test_bad_settings_are_value_errors_naming_them(kw, name):
     with pytest.raises(ValueError, match=name):
