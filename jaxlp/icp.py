@@ -180,7 +180,7 @@ def feedback_cmp(icp_m, icp_ref_m, icp_ref_rate_mps, omega, gain) -> jax.Array:
 
 
 def step_adjustment(icp_m, icp_ref_m, omega, time_to_touchdown_s, cmp_margin_m, adjust_weight, icp_weight,
-                    max_offset_m):
+                    max_offset_m, deadband_m=0.0):
     """Footstep offset ``delta`` (2,) for the ICP error the CMP cannot take out before touchdown (beyond seed 004).
 
     With the CMP ``d`` off the plan's, the ICP error obeys ``ed = omega (e - d)`` (eq. 2), so a constant ``d``
@@ -190,13 +190,16 @@ def step_adjustment(icp_m, icp_ref_m, omega, time_to_touchdown_s, cmp_margin_m, 
     null it. Moving the next footstep (and every later one) by ``delta`` moves the plan's ICP at touchdown by
     ``delta``; the offset minimises ``adjust_weight |delta|^2 + icp_weight |r - delta|^2`` subject to
     ``|delta_i| <= max_offset_m``: separable with a diagonal Hessian, so the box-constrained minimum is the
-    clipped unconstrained one, ``clip(icp_weight / (adjust_weight + icp_weight) r, -max, max)``.
+    clipped unconstrained one, ``clip(icp_weight / (adjust_weight + icp_weight) r, -max, max)``. An error
+    within ``deadband_m`` (per axis) of the plan counts as none, and beyond it by its excess: a walk's own
+    deviation from an idealised plan does not move its steps.
 
     Returns:
         ``(delta, r)``.
     """
     grow = jnp.exp(omega * jnp.maximum(time_to_touchdown_s, 0.0))
-    e_free = grow * (icp_m - icp_ref_m)
+    e = icp_m - icp_ref_m
+    e_free = grow * jnp.sign(e) * jnp.maximum(jnp.abs(e) - deadband_m, 0.0)
     residual = jnp.sign(e_free) * jnp.maximum(jnp.abs(e_free) - (grow - 1.0) * cmp_margin_m, 0.0)
     share = icp_weight / (adjust_weight + icp_weight)
     return jnp.clip(share * residual, -max_offset_m, max_offset_m), residual

@@ -126,6 +126,8 @@ def validate(args: argparse.Namespace) -> None:
     ctrl = controllers.get(name)  # ValueError lists the known names
     args.controller_name = name
     args.overrides = controllers.parse_overrides(ctrl, args.set)
+    if "terrain" in ctrl.defaults() and "terrain" not in args.overrides and args.terrain != "flat":
+        args.overrides["terrain"] = args.terrain  # a controller that plans on a known terrain is told the scene's
     finite("--speed", args.speed)
     finite("--seconds", args.seconds)
     if not 0.0 < args.seconds <= MAX_SECONDS:
@@ -290,7 +292,8 @@ def video(res, args, path: str, title: str) -> dict:
 
 
 def stance_metrics(res, plant: str) -> dict:
-    """CoM drift (horizontal CoM displacement from the first record to the last, before any fall) and, for a
+    """CoM drift (horizontal CoM displacement from the first record to the last, before any fall), CoM rise
+    (its vertical displacement: the height climbed on stairs) and, for a
     torque-controlled plant, the torque-tracking error: RMS and largest |link torque - commanded torque| over
     the joints and the records (commanded before the transport delay, so the delay's lag counts as error)."""
     import numpy as np
@@ -299,7 +302,8 @@ def stance_metrics(res, plant: str) -> dict:
     t = np.asarray(res.time_s)
     ok = t <= float(res.fall_time_s) if bool(res.fell) else np.ones(t.shape, bool)
     com = com[ok]
-    out = {"plant": plant, "com_drift_m": float(np.linalg.norm(com[-1, :2] - com[0, :2])) if len(com) else None}
+    out = {"plant": plant, "com_drift_m": float(np.linalg.norm(com[-1, :2] - com[0, :2])) if len(com) else None,
+           "com_rise_m": float(com[-1, 2] - com[0, 2]) if len(com) else None}
     if plant != "position":
         err = (np.asarray(res.saved["link_torque_nm"]) - np.asarray(res.saved["command_nm"]))[ok]
         out["torque_tracking_rms_nm"] = float(np.sqrt(np.mean(err ** 2))) if err.size else None

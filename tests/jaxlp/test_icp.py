@@ -192,3 +192,11 @@ def test_gradient_of_the_closed_loop_error_wrt_the_feedback_gain_matches_central
 def test_bad_input_is_a_value_error_naming_it(call, name):
     with pytest.raises(ValueError, match=name):
         call()
+
+
+def test_an_error_within_the_deadband_moves_no_step_and_beyond_it_by_its_excess():
+    xi_ref = jnp.zeros(2)
+    d0, r0 = icp.step_adjustment(jnp.array([0.02, -0.02]), xi_ref, OMEGA, 0.3, 0.0, 1.0, 1.0, 1.0, deadband_m=0.03)
+    assert np.all(np.asarray(d0) == 0.0) and np.all(np.asarray(r0) == 0.0)
+    _, r1 = icp.step_adjustment(jnp.array([0.05, -0.04]), xi_ref, OMEGA, 0.3, 0.0, 1.0, 1.0, 1.0, deadband_m=0.03)
+    np.testing.assert_allclose(r1, np.exp(OMEGA * 0.3) * np.array([0.02, -0.01]), rtol=1e-12)

@@ -1,7 +1,8 @@
 """What the torque-controlled walking families (``footstep-mpc``, ``straight-leg``) share around their planners.
 
 Fixed step timing without contact sensing (seed 001, sec. III): step ``k`` stands on the right foot when ``k`` is
-even; before step 0 a double support of ``start_s`` shifts the CoM toward the right foot. Each tick
+even; before step 0 a double support of ``start_s`` shifts the CoM toward the right foot. A config may hold
+the clock for a late touchdown, sensed by the F/T contact flags (:func:`held_clock`, seed 004 sec. III-B). Each tick
 (:func:`sense`): filter the encoders and the IMU, estimate the floating base on the previous tick's stance
 soles (:func:`mjx_coman.controllers.torque.whole_body`), and on a new step anchor the new stance sole where the
 estimate puts it and take the swing foot's lift-off pose. :func:`swing_and_base` turns a planned footstep
@@ -43,6 +44,8 @@ class WalkState(NamedTuple):
         swing_start_quat: (4,) its orientation then.
         heading_rad: base yaw at the start of the current step (the stance foot's yaw).
         joint_rad: (23,) the filtered link angles (:func:`mjx_coman.controllers.torque.filter_joints`).
+        delay_s: how far the step clock has been held back by late touchdowns, s.
+        late_s: how long past its expected touchdown the current swing foot is still in the air, s.
     """
 
     orient: torque.OrientationState
@@ -52,6 +55,8 @@ class WalkState(NamedTuple):
     swing_start_quat: jax.Array
     heading_rad: jax.Array
     joint_rad: jax.Array
+    delay_s: jax.Array
+    late_s: jax.Array
 
 
 class Sensed(NamedTuple):
@@ -85,7 +90,7 @@ def init_walk(config) -> WalkState:
     f = config.com_ref_m.dtype
     return WalkState(torque.orientation_init(f), jnp.asarray(-1, jnp.int32), config.sole_anchor_m,
                      config.sole_anchor_m[1], jnp.asarray([1.0, 0.0, 0.0, 0.0], f), jnp.zeros((), f),
-                     config.posture_rad)
+                     config.posture_rad, jnp.zeros((), f), jnp.zeros((), f))
 
 
 def rot2(yaw):
@@ -100,6 +105,21 @@ def step_timing(config, time_s):
     k = jnp.floor(rel / config.step_time_s + 1e-6)
     k = jnp.where(rel < 0, -1.0, k)
     return k.astype(jnp.int32), jnp.where(rel < 0, 0.0, rel - jnp.maximum(k, 0.0) * config.step_time_s)
+
+
+def held_clock(config, state: WalkState, time_s, swing_contact):
+    """``(step, time in step, delay_s, late_s)``: :func:`step_timing` held back by late touchdowns (seed 004
+    sec. III-B; configs with ``late_touchdown_on``, else never held). Where the clock would start a new step
+    while the foot that swung (``swing_contact``: its F/T contact flag) has not touched down, it waits a tick,
+    up to ``late_max_s`` per step; ``late_s`` counts the wait."""
+    c = config
+    k, _ = step_timing(c, time_s - state.delay_s)
+    wait = (getattr(c, "late_touchdown_on", 0.0) > 0.5) & (state.step >= 0) & (k != state.step)
+    wait = wait & ~swing_contact & (state.late_s < getattr(c, "late_max_s", 0.0) - 0.5 * c.dt_s)  # whole ticks
+    delay = jnp.where(wait, state.delay_s + c.dt_s, state.delay_s)
+    late = jnp.where(wait, state.late_s + c.dt_s, jnp.zeros_like(state.late_s))
+    k, t_in = step_timing(c, time_s - delay)
+    return k, t_in, delay, late
 
 
 def joystick_now(config, joystick, time_s):
@@ -148,7 +168,7 @@ def sense(config, state: WalkState, obs) -> tuple[WalkState, Sensed]:
     tick = torque.whole_body(r, orient.quat, state.anchor_m, est_mask)
     est = tick.base
     sole_pos = est.data.site_xpos[sole_site_ids()]  # (2, 3)
-    k, t_in = step_timing(c, obs.time_s.astype(f))
+    k, t_in, delay, late = held_clock(c, state, obs.time_s.astype(f), r.contact[1 - prev_stance])
     single = k >= 0
     stance = jnp.where(k % 2 == 0, 0, 1)
     swing = 1 - stance
@@ -160,22 +180,28 @@ def sense(config, state: WalkState, obs) -> tuple[WalkState, Sensed]:
     swing_quat_now = est.data.xquat[np.asarray(foot_body_ids())][swing]
     swing_start = jnp.where(new, sole_pos[swing], state.swing_start_m)
     swing_start_quat = jnp.where(new, swing_quat_now, state.swing_start_quat)
-    state = WalkState(orient, jnp.where(single, k, state.step), anchor, swing_start, swing_start_quat, heading, joints)
+    state = WalkState(orient, jnp.where(single, k, state.step), anchor, swing_start, swing_start_quat, heading, joints,
+                      delay, late)
     return state, Sensed(r, tick, sole_pos, k, t_in, single, new, stance, swing, fwd, lat, turn)
 
 
-def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing_duration_s, swing_t_s):
+def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing_duration_s, swing_t_s,
+                   late_down_mps=0.0, ground_z_m=None):
     """Swing-foot (6,) and pelvis-orientation (3,) task accelerations toward the footstep ``next_xy`` (the foot's
     centre) at heading ``yaw_next`` (seed 001, sec. III; eq. 8), and the swing sole's position error, m.
 
-    The swing runs from lift-off to ``swing_duration_s``; ``swing_t_s`` is the time into it."""
+    The swing runs from lift-off to ``swing_duration_s``; ``swing_t_s`` is the time into it. Past it, while
+    the touchdown is late (``state.late_s``), the foot goes on down at ``late_down_mps`` (seed 004 sec. III-B).
+    The footstep's sole lands at ``ground_z_m`` (a known terrain), else at the stance sole's height."""
     c = config
     f = c.com_ref_m.dtype
     plant, est = s.tick.plant, s.tick.base
     target_sole = next_xy - rot2(yaw_next) @ jnp.stack([jnp.asarray(MID_FOOT_AHEAD_M, f), jnp.zeros((), f)])
-    ground_z = state.anchor_m[s.stance, 2]
+    ground_z = state.anchor_m[s.stance, 2] if ground_z_m is None else ground_z_m
     ref = tr.swing_foot_reference(swing_t_s, swing_duration_s, state.swing_start_m, target_sole,
                                   ground_z - c.touchdown_depth_m, c.clearance_m, state.swing_start_quat, yaw_next)
+    down = jnp.asarray([0.0, 0.0, 1.0], f) * late_down_mps
+    ref = ref._replace(pos=ref.pos - state.late_s * down, vel=jnp.where(state.late_s > 0, -down, ref.vel))
     sole_vel = plant.sole_jac[s.swing] @ est.qvel  # (6,)
     lin = wbc.position_pd(ref.pos, s.sole_pos[s.swing], ref.vel, sole_vel[:3], c.swing_kp_per_s2, c.swing_kd_per_s,
                           ref.acc)

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from mjx_coman.controllers.base import PLANTS, Setting
 from mjx_coman.controllers.footstep_mpc import config as fmpc
 from mjx_coman.controllers.torque import stance_references
+from mjx_coman.scenarios.terrain import parse_terrain
 
 KNEE_MODES = ("straight", "bent")
 MAX_FORWARD_MPS = 0.3
@@ -43,6 +44,12 @@ OWN = (
             "null before touchdown (beyond seed 004: jaxlp.icp.step_adjustment)"),
     Setting("toe_off", True, "roll the trailing foot onto its toe in transfer when the criteria of seed 004 "
             "Fig. 6 hold (sec. IV; :mod:`.toe_off`): one contact point, foot pitch free"),
+    Setting("late_touchdown", True, "hold the step clock while the swing foot is still in the air at its expected "
+            "touchdown (F/T contact flags), driving it down (seed 004 sec. III-B)"),
+    Setting("terrain", "flat", "the terrain the footsteps are planned on (a --terrain string): their heights, "
+            "and on stairs whole treads (:mod:`.foothold`; seed 004 walked stairs on a given plan)"),
+    Setting("stair_heel_overhang_m", 0.05, "on stairs, how far the heel of a footstep on the upper tread may "
+            "overhang the edge, m (:mod:`.foothold`)"),
     Setting("n_steps", 4, "footsteps the ICP plan looks ahead (static)"),
     Setting("momentum_weight", 0.12, "weight of the linear x-y momentum-rate rows (seed 004 eq. 6, 8), 1/N^2 "
             "(0.12: about footstep-mpc's CoM weight of 100 per (m/s^2)^2 on COMAN's 28.9 kg)", True, (0.0, None)),
@@ -69,6 +76,13 @@ OWN = (
             True, (0.0, None)),
     Setting("privileged_weight", 1.0, "weight of the null-space privileged objective (seed 004 eq. 10)", True,
             (0.0, None)),
+    Setting("late_max_s", 0.1, "late touchdown: the longest hold of the step clock per step, s", True, (0.0, 1.0)),
+    Setting("late_down_mps", 0.3, "late touchdown: the swing foot's constant downward speed past its expected "
+            "touchdown, m/s", True, (0.0, 2.0)),
+    Setting("late_swing_weight_per_s", 50.0, "late touchdown: the swing-foot weight grows by this fraction per "
+            "second past the expected touchdown, 1/s", True, (0.0, None)),
+    Setting("late_pelvis_weight_per_s", 10.0, "late touchdown: the pelvis-orientation weight falls by this fraction "
+            "per second past it (down to 0), 1/s", True, (0.0, None)),
     Setting("toe_off_delay_s", 0.06, "toe-off: not before this time into the transfer, s (the clock's touchdown "
             "is not sensed: the leading foot must have landed)", True, (0.0, 1.0)),
     Setting("toe_off_icp_distance_m", 0.15, "toe-off: largest distance of the desired and estimated ICP from "
@@ -83,6 +97,8 @@ OWN = (
     Setting("adjust_cmp_margin_x_m", 0.06, "step adjustment: the CMP's range forward and back of the stance foot's "
             "centre that the ICP feedback may use before a step moves, m (the sole reaches 0.10)", True, (0.0, 0.1)),
     Setting("adjust_cmp_margin_y_m", 0.03, "the same sideways, m (the sole reaches 0.05)", True, (0.0, 0.05)),
+    Setting("adjust_deadband_m", 0.03, "step adjustment: ICP error (per axis, stance foot frame) that moves no "
+            "step, m", True, (0.0, 0.2)),
     Setting("adjust_weight", 1.0, "step adjustment: weight of the footstep offset", True, (0.0, None)),
     Setting("adjust_icp_weight", 4.0, "step adjustment: weight of the ICP error left at touchdown", True,
             (0.0, None)),
@@ -103,7 +119,8 @@ STATIC = tuple(s.name for s in SETTINGS if not s.tunable)
 
 
 # settings held as 0/1 array leaves
-SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on", "toe_off": "toe_off_on"}
+SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on", "toe_off": "toe_off_on",
+            "late_touchdown": "late_touchdown_on"}
 
 
 @functools.partial(
@@ -114,7 +131,7 @@ SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on", "toe_
 @dataclasses.dataclass(frozen=True)
 class Config:
     """Array leaves (the tunables, named as the settings, and the variants' switches ``straight_legs`` and
-    ``step_adjust_on`` and ``toe_off_on``, 1 or 0, so that every variant has one tree structure and batches
+    ``step_adjust_on``, ``toe_off_on`` and ``late_touchdown_on``, 1 or 0, so that every variant has one tree structure and batches
     with the others), the
     stance's references, and the static choices (``(name, value)`` pairs). All are read as attributes."""
 
@@ -179,7 +196,7 @@ def make_config(**settings) -> Config:
         raise ValueError(f"plant={v['plant']!r} must be torque-ideal or torque-sea")
     if v["knee_mode"] not in KNEE_MODES:
         raise ValueError(f"knee_mode={v['knee_mode']!r} must be one of {', '.join(KNEE_MODES)}")
-    for name in ("fixed_upper_body", "step_adjust", "toe_off"):
+    for name in ("fixed_upper_body", "step_adjust", "toe_off", "late_touchdown"):
         if not isinstance(v[name], bool):
             raise ValueError(f"{name}={v[name]!r} must be true or false")
     for name, lo, hi in (("n_steps", 2, 12), ("qp_max_iter", 1, 200), ("qp_retry_iter", 0, None)):
@@ -191,6 +208,10 @@ def make_config(**settings) -> Config:
     if v["transfer_s"] >= v["swing_s"] + v["transfer_s"] or v["transfer_s"] >= v["swing_s"]:
         raise ValueError(f"transfer_s={v['transfer_s']!r} must be shorter than swing_s={v['swing_s']!r}")
     v["start_s"] = fmpc.number_in("start_s", v["start_s"], 0.0, 5.0)
+    v["stair_heel_overhang_m"] = fmpc.number_in("stair_heel_overhang_m", v["stair_heel_overhang_m"], 0.0, 0.1)
+    if not isinstance(v["terrain"], str):
+        raise ValueError(f"terrain={v['terrain']!r} must be a terrain string (flat, rough:CM[:SEED], stairs:CM)")
+    v["terrain"] = parse_terrain(v["terrain"]).text  # raises ValueError naming a bad one
     v["knee_rad"] = fmpc.number_in("knee_rad", v["knee_rad"], 0.1, 1.2)
     v["friction_coeff"] = fmpc.number_in("friction_coeff", v["friction_coeff"], 0.0, 2.0, lo_open=True)
     v["startup_s"] = fmpc.number_in("startup_s", v["startup_s"], 0.0, 1.0)
@@ -215,5 +236,6 @@ def make_config(**settings) -> Config:
     leaves["straight_legs"] = jnp.asarray(1.0 if v["knee_mode"] == "straight" else 0.0, f)
     leaves["step_adjust_on"] = jnp.asarray(1.0 if v["step_adjust"] else 0.0, f)
     leaves["toe_off_on"] = jnp.asarray(1.0 if v["toe_off"] else 0.0, f)
+    leaves["late_touchdown_on"] = jnp.asarray(1.0 if v["late_touchdown"] else 0.0, f)
     statics = tuple((k, v[k]) for k in STATIC if k not in SWITCHES)
     return Config(leaves, jnp.asarray(q, f), jnp.asarray(com, f), jnp.asarray(soles, f), statics)

@@ -17,8 +17,9 @@ Toe-off (sec. IV): in each transfer the trailing foot rolls onto its toe point o
 hold (:mod:`.toe_off`; the CoP is the last tick's), its pitch left free in the QP (:mod:`mjx_coman.wbc.contacts`);
 its swing then starts from the pose at lift-off.
 
-Not built yet (issue 18): the late-touchdown handling (sec. III-B) and step timing adjustment; touchdown is
-the fixed clock's.
+Late touchdown (sec. III-B): where the swing foot's F/T sensor reads no contact at the step's end, the step
+clock waits (up to ``late_max_s``; :func:`~mjx_coman.controllers.footstep_mpc.stepping.sense`), the foot goes
+on down at ``late_down_mps``, its weight rising and the pelvis orientation's falling linearly with the time past.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from mjx_coman import wbc
 from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Telemetry
 from mjx_coman.controllers.footstep_mpc import stepping
+from mjx_coman.controllers.straight_leg import foothold as fh
 from mjx_coman.controllers.straight_leg import legs as lg
 from mjx_coman.controllers.straight_leg import toe_off as to
 from mjx_coman.controllers.straight_leg.config import Config
@@ -73,6 +75,7 @@ class Extra(NamedTuple):
     step_offset_m: jax.Array  # (2,) step adjustment (0 without it)
     swing_error_m: jax.Array
     toe_off: jax.Array  # 1 while the trailing foot is on its toe
+    late_s: jax.Array  # time past the expected touchdown of the swing foot still in the air
 
 
 # the sole corners in order around the sole (mjx_coman.mjcf.FOOT_CORNERS: upper_left, upper_right, lower_left,
@@ -139,9 +142,14 @@ def step(config: Config, state: State, obs):
     to_foot = stepping.rot2(heading).T
     margin = jnp.stack([c.adjust_cmp_margin_x_m, c.adjust_cmp_margin_y_m])
     offset, _ = icp.step_adjustment(to_foot @ xi, to_foot @ xi_nom, w, T - t_in, margin, c.adjust_weight,
-                                    c.adjust_icp_weight, c.max_adjustment_m)
+                                    c.adjust_icp_weight, c.max_adjustment_m, c.adjust_deadband_m)
     offset = jnp.where(single, c.step_adjust_on * (to_foot.T @ offset), 0.0)
     footsteps = ref.footsteps_m.at[1:].add(offset)
+    landing_z = None
+    if c.terrain != "flat":  # static: the planned footsteps on the known terrain, soles at its height
+        ahead, heights = fh.footholds(c.terrain, footsteps[1:], heel_overhang_m=c.stair_heel_overhang_m)
+        footsteps = footsteps.at[1:].set(ahead)
+        landing_z = (heights[0] + jnp.mean(c.sole_anchor_m[:, 2])).astype(f)
     # the CMP feedback tracks the nominal plan: the adjustment assumed the CMP at its margin till touchdown
     xi_ref, xid_ref, _ = icp.reference(nominal, 0.0)
     cmp = icp.feedback_cmp(xi, xi_ref, xid_ref, w, c.icp_gain)
@@ -172,7 +180,11 @@ def step(config: Config, state: State, obs):
     # swing foot and pelvis (seed 001's trajectory layer)
     yaw_next = heading + s.turn * T
     swing_acc, base_acc, swing_error = stepping.swing_and_base(c, walk, s, footsteps[1], yaw_next, c.swing_s,
-                                                                jnp.maximum(t_in - c.transfer_s, 0.0))
+                                                                jnp.maximum(t_in - c.transfer_s, 0.0),
+                                                                c.late_down_mps, landing_z)
+    # late touchdown (sec. III-B): the swing foot's weight up, the pelvis's down with the time past touchdown
+    swing_w = c.swing_weight * (1.0 + c.late_swing_weight_per_s * walk.late_s)
+    base_w = c.base_weight * jnp.maximum(1.0 - c.late_pelvis_weight_per_s * walk.late_s, 0.0)
 
     # the legs' privileged knees (Fig. 5)
     knees = jnp.stack([est.qpos[7 + KNEES[0]], est.qpos[7 + KNEES[1]]])
@@ -184,8 +196,8 @@ def step(config: Config, state: State, obs):
     mask = jnp.where(both, jnp.ones(2, f), jax.nn.one_hot(stance, 2, dtype=f))
     nv = est.qvel.shape[0]
     momentum = wbc.momentum_rate_task(plant.cmm, plant.cmm_bias, hdot, c.momentum_weight)
-    pelvis = wbc.pelvis_orientation_task(plant, base_acc, c.base_weight)
-    feet = [wbc.foot_task(plant, i, swing_acc, c.swing_weight * (1.0 - mask[i])) for i in range(2)]
+    pelvis = wbc.pelvis_orientation_task(plant, base_acc, base_w)
+    feet = [wbc.foot_task(plant, i, swing_acc, swing_w * (1.0 - mask[i])) for i in range(2)]
     posture_w = jnp.ones(nv - N_BASE, f).at[jnp.asarray(KNEES)].set(0.0) * c.posture_weight
     tasks = [momentum, pelvis, *feet,
              wbc.posture_task(est.qpos[7:], est.qvel[6:], c.posture_rad, c.posture_kp_per_s2, c.posture_kd_per_s,
@@ -225,7 +237,8 @@ def step(config: Config, state: State, obs):
         extra=Extra(qp.info.iterations, qp.info.kkt_residual.astype(dtype),
                     qp.info.eq_residual.astype(dtype), qp.info.ineq_violation.astype(dtype), legs.mode, knee_p.astype(dtype),
                     knees.astype(dtype), xi.astype(dtype), xi_ref.astype(dtype), cmp.astype(dtype),
-                    offset.astype(dtype), swing_error.astype(dtype), toe.astype(dtype)),
+                    offset.astype(dtype), swing_error.astype(dtype), toe.astype(dtype),
+                    walk.late_s.astype(dtype)),
         ok=qp.info.ok,
     )
     load = jnp.sum(jnp.maximum(qp.forces[..., 2], 0.0), axis=1)
