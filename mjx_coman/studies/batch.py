@@ -134,7 +134,8 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
         name: a registered controller.
         rows: the walks.
         seconds: duration of each walk, s.
-        overrides: settings of the controller (shared by every row).
+        overrides: settings of the controller (shared by every row). A controller that plans on a known terrain
+            (a ``terrain`` setting) is told each row's unless ``overrides`` sets it.
         batch: rows per compiled call (the compilation's batch size; a rough terrain with fewer rows: their number).
         progress: called with the number of rows finished after each chunk.
 
@@ -155,6 +156,8 @@ def run_rows(name: str, rows: list[Row], seconds: float, overrides: dict | None 
     done = 0
     for terrain, idx in by_terrain.items():
         spec = ro.WalkSpec(seconds=float(seconds), judge=gt.judge_on(terrain))
+        if "terrain" in ctrl.defaults() and "terrain" not in (overrides or {}):
+            config = controllers.load(name, {**(overrides or {}), "terrain": terrain})[1]
         size = batch if terrain == "flat" else min(batch, len(idx))  # flat: one shape for every experiment
         for lo in range(0, len(idx), size):
             part = idx[lo:lo + size]

@@ -132,6 +132,18 @@ def toe_off_fraction(res, corners_m, terrain: str = "flat", after_s: float = KNE
     return float(np.mean(rolled)) if rolled else None
 
 
+def step_length_m(res, after_s: float = KNEE_AFTER_S) -> float | None:
+    """Mean |distance| along the heading from the trailing foot to the landing one at each touchdown past
+    ``after_s`` and before any fall (ground truth); ``None`` without one."""
+    k = int(res.touchdowns)
+    t = np.asarray(res.log.time_s)[:k]
+    end = float(res.fall_time_s) if bool(res.fell) else np.inf
+    d = (np.asarray(res.log.foot_m) - np.asarray(res.log.other_foot_m))[:k, :2]
+    yaw = np.asarray(res.log.yaw_rad)[:k]
+    along = np.abs(np.cos(yaw) * d[:, 0] + np.sin(yaw) * d[:, 1])[(t > after_s) & (t <= end)]
+    return float(along.mean()) if along.size else None
+
+
 def summary(res, pushed: bool = False, record_period_s: float | None = None, terrain: str = "flat") -> dict:
     """The figures of one walk: verdict, mean speed, heading change, CoM-velocity cycle, the knee figures and the
     toe-off fraction where the records have them, and (key ``series``, NumPy arrays for plots) time, CoM
@@ -147,6 +159,9 @@ def summary(res, pushed: bool = False, record_period_s: float | None = None, ter
         knees["com_height_m"] = {"min": float(z.min()), "mean": float(z.mean()), "max": float(z.max())} if len(z) else None
     if "corners_m" in res.saved:
         knees["toe_off_fraction"] = toe_off_fraction(res, res.saved["corners_m"], terrain)
+        knees["step_length_m"] = step_length_m(res)
+        com = np.asarray(res.saved["com_m"])[alive]
+        knees["com_rise_m"] = float(com[-1, 2] - com[0, 2]) if len(com) else None
     return {
         "fell": fell,
         "fall_time_s": float(res.fall_time_s) if fell else None,

@@ -97,8 +97,30 @@ def _mid_swing_push(result, rows, axes):
     b.set_title("largest recovered impulse (N s) by direction", fontsize=8)
 
 
+def _toe_off(result, rows, axes):
+    a, b = axes
+    v = [r["label"]["speed_mps"] for r in rows]
+    for key, ax, unit in (("stance_knee_mid_rad", a, "rad"), ("toe_off_fraction", b, "")):
+        ax.plot(v, [r.get(key) if r.get(key) is not None else float("nan") for r in rows], "-o", ms=3)
+        ax.set(xlabel="commanded speed (m/s)", ylabel=f"{key} ({unit})" if unit else key)
+    a.set_title("stance knee at mid-stance", fontsize=8)
+    b.set_title("steps with toe-off (ground truth)", fontsize=8)
+
+
+def _stairs(result, rows, axes):
+    a, b = axes
+    for r in rows:
+        s = r["series"]
+        a.plot(s["com_m"][:, 0], s["com_m"][:, 2], lw=0.7, label=f"{r['label']['riser_cm']} cm")
+        b.plot(s["time_s"], s["com_vel_mps"][:, 0], lw=0.5)
+    a.set(xlabel="CoM x (m)", ylabel="CoM z (m)", title=f"up stairs (Fig. 10): largest climbed "
+                                                          f"{result['largest_riser_up_cm']} cm")
+    a.legend(fontsize=6)
+    b.set(xlabel="time (s)", ylabel="CoM forward velocity (m/s)")
+
+
 DRAW = {
-    "flat": _flat, "mid-swing-push": _mid_swing_push,
+    "flat": _flat, "mid-swing-push": _mid_swing_push, "toe-off": _toe_off, "stairs": _stairs,
     "speeds": _speeds, "steer": _steer, "push": _push, "terrain": _terrain,
     "model-error": lambda res, rows, ax: _largest(res, rows, ax, "payload_kg", "kg"),
     "slope": lambda res, rows, ax: _largest(res, rows, ax, "slope_deg", "deg"),

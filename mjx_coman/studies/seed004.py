@@ -9,8 +9,14 @@
   too) and the steps to recover (ground truth). Mid-swing is the middle of the swing after any transfer
   (``transfer_s`` of a controller that has one).
 
-Stairs and toe-off are not experiments yet: the controllers walk blind (no terrain in the observation), and
-toe-off is not built (issue 18).
+* ``toe-off``: the flat walk at 0.1, 0.15 and the scaled 0.19 m/s for 20 s: the stance knee at mid-stance, the
+  fraction of steps with toe-off and the step length (ground truth). Run it for ``straight-leg`` and
+  ``straight-leg-no-toe-off`` (seed 004, sec. IV: toe-off lets the trailing leg extend).
+* ``stairs``: up ``stairs:CM`` (:mod:`mjx_coman.scenarios.terrain`: 0.3 m treads) at 0.1 m/s for 16 s, risers
+  2-10 cm (Atlas climbed 19.7 cm with a leg about twice COMAN's: ~10 cm scaled); a controller with a
+  ``terrain`` setting plans its footholds on the stairs (:mod:`mjx_coman.studies.batch`). Each riser is a
+  scene of its own (a compilation each). Climbed: no fall and the CoM risen by at least two risers. The
+  stairs of the scenarios only go up; descending is not an experiment (Fig. 10's down is left).
 """
 
 from __future__ import annotations
@@ -20,8 +26,9 @@ import math
 import numpy as np
 
 from mjx_coman import controllers
+from mjx_coman import scenarios as sc
 from mjx_coman.studies.batch import Row
-from mjx_coman.studies.seed001 import Experiment, Plan, _by, _small, _table, largest_tolerated
+from mjx_coman.studies.seed001 import SMALL_S, Experiment, Plan, _by, _small, _table, largest_tolerated
 
 FROUDE = math.sqrt(0.432 / 0.85)  # COMAN's hip-to-ankle against Atlas's leg
 FLAT_MPS = round(0.26 * FROUDE, 2)
@@ -80,9 +87,51 @@ def _push_reduce(plan, res):
             "reference": "a common ICP-stack test: 0.35 m g for 0.1 s mid-swing, about 10 N s for COMAN"}
 
 
+TOE_OFF_MPS = (0.1, PUSH_MPS, FLAT_MPS)
+STAIR_MPS = 0.1
+STAIR_S = 16.0
+RISERS_CM = (2, 4, 6, 8, 10)
+
+
+def _toe_off_plan(name, size, gait):
+    vs = [v for v in TOE_OFF_MPS if v <= gait.max_forward_mps + 1e-9]
+    return _small(Plan([Row(forward_mps=v) for v in vs], [{"speed_mps": v} for v in vs], 20.0, {}), size)
+
+
+def _toe_off_reduce(plan, res):
+    keep = ("speed_mps", "fell", "stance_knee_mid_rad", "toe_off_fraction", "step_length_m", "mean_speed_mps",
+            "mean_abs_knee_torque_nm")
+    return {"rows": _table(plan, res), "by_speed": [{k: x.get(k) for k in keep} for x in _table(plan, res)],
+            "paper": "toe-off lets the trailing leg extend, the leading leg bend less (sec. IV)"}
+
+
+def _stairs_plan(name, size, gait):
+    risers = RISERS_CM if size == "full" else RISERS_CM[:1]
+    rows = [Row(forward_mps=STAIR_MPS, scenario=sc.Scenario(terrain=f"stairs:{h}")) for h in risers]
+    plan = Plan(rows, [{"riser_cm": h} for h in risers], STAIR_S, {})
+    return plan if size == "full" else Plan(plan.rows, plan.labels, SMALL_S, {})
+
+
+def climbed(row: dict, riser_cm: float) -> bool:
+    """No fall, and the CoM rose by at least two risers (ground truth)."""
+    return (not row["fell"]) and (row.get("com_rise_m") or 0.0) >= 2 * riser_cm / 100.0 - 1e-3
+
+
+def _stairs_reduce(plan, res):
+    rows = _table(plan, res)
+    ok = [climbed(x, x["riser_cm"]) for x in rows]
+    best = largest_tolerated([x["riser_cm"] for x in rows], ok)
+    return {"rows": rows, "climbed": dict(zip([str(x["riser_cm"]) for x in rows], ok)), "largest_riser_up_cm": best,
+            "paper": "Atlas climbed and descended 19.685 cm risers in simulation (Fig. 10)"}
+
+
 EXPERIMENTS = {e.name: e for e in (
     Experiment("flat", "walking at COMAN's scale of Atlas's 0.26 m/s for 20 s: knees, knee torque (Fig. 9)",
                _flat_plan, _flat_reduce),
+    Experiment("toe-off", "flat walks at 0.1-0.19 m/s for 20 s: stance knee, toe-off fraction, step length",
+               _toe_off_plan, _toe_off_reduce),
+    Experiment("stairs", "up stairs of 2-10 cm risers at 0.1 m/s for 16 s: the largest climbed (Fig. 10)",
+               _stairs_plan, _stairs_reduce),
     Experiment("mid-swing-push", "0.1 s pushes at mid-swing in 8 directions, 1-12 N s, at 0.15 m/s", _push_plan,
                _push_reduce),
 )}

@@ -117,3 +117,18 @@ def test_corner_positions_match_the_standing_robot_on_the_floor():
     c = metrics.corner_positions_m(q[None])
     assert c.shape == (1, 2, 4, 3)
     np.testing.assert_allclose(c[0, 0, 0, :2] - c[0, 0, 2, :2], [0.20, 0.0], atol=0.02)  # toe 0.20 ahead of heel
+
+
+def test_step_length_is_the_distance_along_the_heading_between_the_feet_at_touchdown():
+    from types import SimpleNamespace
+
+    td = np.arange(0.3, 6.0, 0.6)
+    n = len(td)
+    yaw = np.full(n, np.pi / 2)  # walking along +y
+    foot = np.stack([np.where(np.arange(n) % 2 == 0, 0.08, -0.08), 0.12 * np.arange(1, n + 1), np.zeros(n)], 1)
+    other = np.stack([-foot[:, 0], 0.12 * np.arange(0, n), np.zeros(n)], 1)
+    res = SimpleNamespace(touchdowns=n, fell=False, fall_time_s=np.inf,
+                          log=SimpleNamespace(time_s=td, foot_m=foot, other_foot_m=other, yaw_rad=yaw))
+    assert metrics.step_length_m(res, after_s=1.0) == pytest.approx(0.12)
+    res.fell, res.fall_time_s = True, 0.5
+    assert metrics.step_length_m(res, after_s=1.0) is None

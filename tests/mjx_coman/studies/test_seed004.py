@@ -10,7 +10,7 @@ from mjx_coman.studies import seed001, seed004
 from mjx_coman.studies.batch import check_rows
 
 
-@pytest.mark.parametrize("name", ["flat", "mid-swing-push"])
+@pytest.mark.parametrize("name", ["flat", "toe-off", "mid-swing-push"])
 @pytest.mark.parametrize("controller", ["straight-leg", "footstep-mpc"])
 def test_plans_are_valid_and_small_shares_the_flat_compilation(name, controller):
     full = studies.plan(name, controller, "full")
@@ -55,3 +55,19 @@ def test_push_reduction_reads_the_largest_recovered_impulse_below_the_first_fall
     assert out["0"]["largest_recovered_ns"] == 5.0 and out["90"]["largest_recovered_ns"] == 1.0
     assert out["0"]["median_steps_to_recover"] == pytest.approx(np.median([1, 2, 3, 4, 5]))
     assert out["90"]["median_steps_to_recover"] == 1.0  # only what lies below the first fall
+
+
+def test_stairs_rows_are_one_scene_per_riser_and_climbing_needs_two_risers_of_rise():
+    plan = studies.plan("stairs", "straight-leg")
+    assert [r.scenario.terrain for r in plan.rows] == [f"stairs:{h}" for h in seed004.RISERS_CM]
+    assert max(seed004.RISERS_CM) >= 0.197 / 2 * 100  # Atlas's riser scaled by the leg length
+    check_rows("straight-leg", plan.rows, plan.seconds)
+    res = [dict(_result(False), riser_cm=h, com_rise_m=2.5 * h / 100 if h < 8 else 0.01) for h in seed004.RISERS_CM]
+    out = seed004.EXPERIMENTS["stairs"].reduce(plan, res)
+    assert out["largest_riser_up_cm"] == 6 and out["climbed"]["8"] is False
+    assert not seed004.climbed(dict(_result(True), com_rise_m=1.0), 2)  # a fall is not a climb
+
+
+def test_toe_off_rows_walk_at_the_three_speeds():
+    plan = studies.plan("toe-off", "straight-leg-no-toe-off")
+    assert [lab["speed_mps"] for lab in plan.labels] == list(seed004.TOE_OFF_MPS) and plan.seconds == 20.0
