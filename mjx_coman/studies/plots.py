@@ -74,17 +74,30 @@ def _terrain(result, rows, axes):
     b.set(xlabel="time (s)", ylabel="CoM forward velocity (m/s)")
 
 
+def icp_path_m(series) -> np.ndarray:
+    """(n-1, 2) the ground-truth capture point ``x + xd / omega`` of a walk's series (seed 004 eq. 1), omega
+    from the walk's mean CoM height: CoM midpoints between records and their difference velocities."""
+    com = np.asarray(series["com_m"], np.float64)
+    if len(com) < 2:
+        return np.zeros((0, 2))
+    omega = np.sqrt(9.81 / com[:, 2].mean())
+    return 0.5 * (com[1:, :2] + com[:-1, :2]) + np.asarray(series["com_vel_mps"]) / omega
+
+
 def _flat(result, rows, axes):
     a, b = axes
-    for r in rows:
+    for k, r in enumerate(rows):
         s = r["series"]
         a.plot(s["time_s"], s["com_m"][: len(s["time_s"]), 2], lw=0.7)
-        b.plot(s["com_m"][:, 0], s["com_m"][:, 1], lw=0.7)
+        b.plot(s["com_m"][:, 0], s["com_m"][:, 1], lw=0.7, color=f"C{k}", label=f"CoM {r['label']}")
+        icp = icp_path_m(s)
+        b.plot(icp[:, 0], icp[:, 1], lw=0.5, ls="--", color=f"C{k}", label="ICP (ground truth)")
     x = rows[0] if rows else {}
     knee = x.get("stance_knee_mid_rad")
     a.set(xlabel="time (s)", ylabel="CoM height (m)",
           title=f"stance knee at mid-stance {knee:.3f} rad" if knee is not None else "CoM height (Fig. 9)")
-    b.set(xlabel="CoM x (m)", ylabel="CoM y (m)", title="CoM path (Fig. 9)")
+    b.set(xlabel="x (m)", ylabel="y (m)", title="CoM and ICP paths (Fig. 9)")
+    b.legend(fontsize=5)
 
 
 def _mid_swing_push(result, rows, axes):
