@@ -242,6 +242,7 @@ def run(args: argparse.Namespace) -> tuple[dict, object]:
         "fell": fell,
         "fall_time_s": float(res.fall_time_s) if fell else None,
         "nan": bool(res.nan),
+        "solve_failed": bool(res.solve_failed),
         "mean_speed_mps": float(res.mean_speed_mps),
         "touchdowns": int(res.touchdowns),
         "steps_to_recover": (s2r if s2r >= 0 else None) if args.push_ns > 0 else None,

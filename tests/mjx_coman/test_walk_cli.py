@@ -135,10 +135,10 @@ def short_walk(tmp_path_factory):
 def test_short_walk_reports_ground_truth_and_stays_up(short_walk):
     report, png = short_walk
     for key in ("controller", "settings", "fell", "mean_speed_mps", "touchdowns", "steps_to_recover",
-                "max_abs_footstep_adjustment_m", "nan", "push", "heading_change_rad"):
+                "max_abs_footstep_adjustment_m", "nan", "solve_failed", "push", "heading_change_rad"):
         assert key in report
     assert report["controller"] == "time-projection" and report["settings"] == {"hip_attack": 0.7}
-    assert report["fell"] is False and report["nan"] is False
+    assert report["fell"] is False and report["nan"] is False and report["solve_failed"] is False
     assert report["touchdowns"] >= 8  # 4 s: the start-up phase, then a touchdown every 0.4 s
     assert abs(report["mean_speed_mps"]) < 0.15  # in place
     assert abs(report["heading_change_rad"]) < 0.2 and report["turn_rate_rad_per_s"] == 0.0  # no steering
