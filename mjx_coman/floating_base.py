@@ -47,6 +47,14 @@ def sole_site_ids() -> np.ndarray:
     return np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in dynamics.SOLE_SITES])
 
 
+def corner_site_ids(model: mujoco.MjModel | None = None) -> np.ndarray:
+    """(2, 4) site ids of the sole corners ``{r,l}_foot_<corner>``: right foot first, corners in
+    :data:`mjx_coman.dynamics.CORNERS` order."""
+    m = load_model() if model is None else model
+    return np.array([[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"{f}_foot_{c}") for c in dynamics.CORNERS]
+                     for f in ("r", "l")])
+
+
 class BaseState(NamedTuple):
     """The estimated full state and the whole-body terms at it.
 

@@ -24,6 +24,7 @@ from mjx_coman import ground_truth as gt
 from mjx_coman import rollout as ro
 from mjx_coman import scenarios as sc
 from mjx_coman.actuators import JOINT_INDEX
+from mjx_coman.floating_base import corner_site_ids
 from mjx_coman.studies import metrics
 
 RECORD_EVERY = 10  # control ticks between records (0.02 s at 500 Hz)
@@ -78,7 +79,7 @@ def _record(state: ro.RolloutState) -> dict:
     full = ro.pelvis_and_com(state)
     d = state.env.data
     knees = {"knee_rad": d.qpos[7 + np.asarray(KNEES)], "knee_torque_nm": d.ctrl[np.asarray(KNEES)],
-             "corners_m": d.site_xpos[np.asarray(metrics.corner_sites())].reshape(2, 4, 3)}
+             "corners_m": d.site_xpos[corner_site_ids()]}
     return {**{k: full[k] for k in ("pelvis_m", "com_m", "pelvis_yaw_rad")}, **knees}
 
 

@@ -82,27 +82,16 @@ TOE_CONTACT_M = 0.004  # a front corner this close to the ground touches it (the
 HEEL_LIFT_M = 0.008  # the heel this far above the front corners: the foot has rolled onto its toe
 
 
-def corner_sites() -> tuple[int, ...]:
-    """MuJoCo site ids of the sole corners, (right, left) x :data:`mjx_coman.mjcf.FOOT_CORNERS` (8,)."""
-    import mujoco
-
-    import mjx_coman
-    from mjx_coman.mjcf import FOOT_CORNERS
-
-    model = mjx_coman.load_model()
-    return tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{side}_foot_{c}") for side in ("r", "l")
-                 for c in FOOT_CORNERS)
-
-
 def corner_positions_m(qpos) -> np.ndarray:
     """(n, 2, 4, 3) sole corners of the poses ``qpos`` (n, nq) by MuJoCo's kinematics."""
     import mujoco
 
     import mjx_coman
+    from mjx_coman.floating_base import corner_site_ids
 
     model = mjx_coman.load_model()
     data = mujoco.MjData(model)
-    ids = list(corner_sites())
+    ids = corner_site_ids(model).reshape(-1)
     out = []
     for q in np.asarray(qpos, np.float64):
         data.qpos[:] = q

@@ -146,7 +146,7 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
 
     # dynamics (seed 001 eq. 1): M qdd + h - passive - J_c^T (mask f) = S^T tau
     h_eff = plant.bias - plant.passive
-    jc = plant.contact_jac.reshape(N_FORCES, nv) * corner_mask(contact_mask, toe_off)[:, None].astype(dt)
+    jc = plant.contact_jac.reshape(N_FORCES, nv) * corner_mask(contact_mask)[:, None].astype(dt)  # heels: force_map
     dyn = plant.mass @ qdd_map - jc.T @ force_map  # (nv, n)
     dyn0 = plant.mass @ qdd_offset + h_eff
     tau_map, tau_offset = dyn[N_BASE:], dyn0[N_BASE:]

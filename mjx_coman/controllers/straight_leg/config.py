@@ -130,10 +130,10 @@ SWITCHES = {"knee_mode": "straight_legs", "step_adjust": "step_adjust_on", "toe_
 )
 @dataclasses.dataclass(frozen=True)
 class Config:
-    """Array leaves (the tunables, named as the settings, and the variants' switches ``straight_legs`` and
-    ``step_adjust_on``, ``toe_off_on`` and ``late_touchdown_on``, 1 or 0, so that every variant has one tree structure and batches
-    with the others), the
-    stance's references, and the static choices (``(name, value)`` pairs). All are read as attributes."""
+    """Array leaves (the tunables, named as the settings, and the variants' switches ``straight_legs``,
+    ``step_adjust_on``, ``toe_off_on`` and ``late_touchdown_on``, 1 or 0, so that every variant has one tree
+    structure and batches with the others), the stance's references, and the static choices (``(name, value)``
+    pairs). All are read as attributes."""
 
     leaves: dict
     posture_rad: jax.Array  # (23,) the crouched stance

@@ -7,18 +7,18 @@ foot and each planned footstep, smoothed through every transfer (:func:`jaxlp.ic
 feedback on the estimated CoM state (:func:`jaxlp.icp.feedback_cmp`) and from it the desired linear momentum
 rate ``m omega^2 (x - r_cmp)``, only its x-y rows as a task (eq. 6, 8). With ``step_adjust`` the next footstep
 and the later ones move by the ICP error that the CMP, held at the edge of its range in the stance foot, would
-leave at touchdown (:func:`jaxlp.icp.step_adjustment`); the feedback tracks the nominal plan. The swing foot and the pelvis follow seed 001's trajectory layer. The vertical
-force is free: ``knee_mode="straight"`` adds the privileged knee angles of :mod:`.legs` as joint accelerations
-``kp (q_p - q) - kd qd`` (eq. 9, damping opposing the velocity) projected into the null space of the task
-Jacobian ``[S A; J_pelvis; J_swing]`` (eq. 10; ``mjx_coman.wbc.null_space_task``, an SVD pseudo-inverse with
-a cut-off, finite at a straight knee); ``knee_mode="bent"`` holds the crouched CoM height by a task instead.
+leave at touchdown (:func:`jaxlp.icp.step_adjustment`); the feedback tracks the nominal plan. The swing foot
+and the pelvis follow seed 001's trajectory layer. The vertical force is free: ``knee_mode="straight"`` adds
+the privileged knee angles of :mod:`.legs` as joint accelerations ``kp (q_p - q) - kd qd`` (eq. 9, damping
+opposing the velocity) projected into the null space of the task Jacobian ``[S A; J_pelvis; J_swing]`` (eq. 10;
+``mjx_coman.wbc.null_space_task``, an SVD pseudo-inverse with a cut-off, finite at a straight knee); ``knee_mode="bent"`` holds the crouched CoM height by a task instead.
 
 Toe-off (sec. IV): in each transfer the trailing foot rolls onto its toe point once the criteria of Fig. 6
 hold (:mod:`.toe_off`; the CoP is the last tick's), its pitch left free in the QP (:mod:`mjx_coman.wbc.contacts`);
 its swing then starts from the pose at lift-off.
 
 Late touchdown (sec. III-B): where the swing foot's F/T sensor reads no contact at the step's end, the step
-clock waits (up to ``late_max_s``; :func:`~mjx_coman.controllers.footstep_mpc.stepping.sense`), the foot goes
+clock waits (up to ``late_max_s``; :func:`~mjx_coman.controllers.footstep_mpc.stepping.held_clock`), the foot goes
 on down at ``late_down_mps``, its weight rising and the pelvis orientation's falling linearly with the time past.
 """
 
@@ -136,12 +136,12 @@ def step(config: Config, state: State, obs):
     start_xy = stepping.start_com_m(c, c.start_s)[0][:2]
     prev_xy = jnp.where(s.step == 0, start_xy, foot_centre(walk.anchor_m[swing, :2], heading))
     xi = icp.capture_point(plant.com[:2], plant.com_vel[:2], w)
-    nominal = icp_plan(c, walk, s, ref.footsteps_m, prev_xy)
-    xi_nom, _, _ = icp.reference(nominal, 0.0)
+    # the CMP feedback tracks the nominal plan (a step adjustment assumes the CMP at its margin till touchdown)
+    xi_ref, xid_ref, _ = icp.reference(icp_plan(c, walk, s, ref.footsteps_m, prev_xy), 0.0)
     # step adjustment, in the stance foot's frame: the ICP error the CMP cannot null before touchdown
     to_foot = stepping.rot2(heading).T
     margin = jnp.stack([c.adjust_cmp_margin_x_m, c.adjust_cmp_margin_y_m])
-    offset, _ = icp.step_adjustment(to_foot @ xi, to_foot @ xi_nom, w, T - t_in, margin, c.adjust_weight,
+    offset, _ = icp.step_adjustment(to_foot @ xi, to_foot @ xi_ref, w, T - t_in, margin, c.adjust_weight,
                                     c.adjust_icp_weight, c.max_adjustment_m, c.adjust_deadband_m)
     offset = jnp.where(single, c.step_adjust_on * (to_foot.T @ offset), 0.0)
     footsteps = ref.footsteps_m.at[1:].add(offset)
@@ -150,8 +150,6 @@ def step(config: Config, state: State, obs):
         ahead, heights = fh.footholds(c.terrain, footsteps[1:], heel_overhang_m=c.stair_heel_overhang_m)
         footsteps = footsteps.at[1:].set(ahead)
         landing_z = (heights[0] + jnp.mean(c.sole_anchor_m[:, 2])).astype(f)
-    # the CMP feedback tracks the nominal plan: the adjustment assumed the CMP at its margin till touchdown
-    xi_ref, xid_ref, _ = icp.reference(nominal, 0.0)
     cmp = icp.feedback_cmp(xi, xi_ref, xid_ref, w, c.icp_gain)
 
     # momentum rate: m omega^2 (x - r_cmp) while walking, the start's CoM shift before
@@ -162,12 +160,12 @@ def step(config: Config, state: State, obs):
     # toe-off of the trailing (swing) foot in transfer (sec. IV): on once the criteria of Fig. 6 hold
     transfer = single & (t_in < c.transfer_s)
     toe_xy = jnp.mean(plant.contact_pos[swing, jnp.asarray(TOE_CORNERS), :2], axis=0)
-    crit = to.criteria(xi_ref, xi, cmp, state.cop_m[swing], toe_xy, plant.contact_pos[stance, jnp.asarray(AROUND), :2],
-                       stance_xy, icp_distance_m=c.toe_off_icp_distance_m, cop_distance_m=c.toe_off_cop_distance_m,
+    light = state.load_n[swing] < c.toe_off_load_fraction * mass * GRAVITY_MPS2
+    crit = to.criteria(xi_ref, xi, cmp, state.cop_m[swing], light, toe_xy,
+                       plant.contact_pos[stance, jnp.asarray(AROUND), :2], stance_xy,
+                       icp_distance_m=c.toe_off_icp_distance_m, cop_distance_m=c.toe_off_cop_distance_m,
                        cmp_distance_m=c.toe_off_cmp_distance_m)
     toe = jnp.where(s.new, 0.0, state.toe)
-    light = state.load_n[swing] < c.toe_off_load_fraction * mass * GRAVITY_MPS2
-    crit = crit._replace(cop_near_toe=crit.cop_near_toe | light)
     may = crit.all & (t_in >= c.toe_off_delay_s)
     toe = jnp.where(transfer, jnp.maximum(toe, c.toe_off_on * may.astype(f)), 0.0)
     toe_off = jax.nn.one_hot(swing, 2, dtype=f) * toe
@@ -242,4 +240,5 @@ def step(config: Config, state: State, obs):
         ok=qp.info.ok,
     )
     load = jnp.sum(jnp.maximum(qp.forces[..., 2], 0.0), axis=1)
-    return State(walk, legs, toe, cop.astype(f), load.astype(f)), Command(tau_nm, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32)), tel
+    command = Command(tau_nm, jnp.zeros(3, dtype), jnp.asarray(MODE_TORQUE, jnp.int32))
+    return State(walk, legs, toe, cop.astype(f), load.astype(f)), command, tel

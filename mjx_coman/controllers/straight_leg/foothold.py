@@ -5,8 +5,8 @@ terrain (its ``terrain`` setting, a terrain string as ``--terrain``) and plans o
 the terrain's under the foot's centre, and on ``stairs:CM`` a footstep whose sole (``SOLE_HALF_LENGTH_M``
 either side of its centre) would straddle a stair edge moves along x off it (:func:`on_treads`): between
 treads a whole sole and a margin (0.3 m treads under a 0.2 m sole) took 0.22 m steps, too long for COMAN,
-so the heel may overhang the edge below by ``heel_overhang_m``. Stairs run along world x (:mod:`mjx_coman.scenarios.terrain`); the walk is assumed to head
-along x there.
+so the heel may overhang the edge below by ``heel_overhang_m``. Stairs run along world x
+(:mod:`mjx_coman.scenarios.terrain`); the walk is assumed to head along x there.
 """
 
 from __future__ import annotations

@@ -6,7 +6,9 @@ starts when all hold:
 
 1. the desired and the estimated ICP lie inside that polygon and within ``icp_distance_m`` of the leading
    foot's centre (the foothold);
-2. the trailing foot's CoP lies within ``cop_distance_m`` of its toe point;
+2. the trailing foot's CoP lies within ``cop_distance_m`` of its toe point, or the foot is nearly unloaded
+   (``trailing_light``: rolling it onto its toe changes little; beyond seed 004, whose QP put the trailing
+   CoP at the heel through COMAN's transfers);
 3. the desired CMP lies within ``cmp_distance_m`` of the polygon.
 """
 
@@ -60,12 +62,13 @@ def polygon_distance(p, pieces) -> jax.Array:
     return jnp.min(jax.vmap(lambda t: triangle_distance(p, t))(pieces))
 
 
-def criteria(icp_des, icp_est, cmp_des, trailing_cop, toe, leading_corners, leading_centre, *, icp_distance_m,
-             cop_distance_m, cmp_distance_m) -> Criteria:
-    """The four checks of the module docstring (all positions world x-y, (2,); corners (4, 2) in order)."""
+def criteria(icp_des, icp_est, cmp_des, trailing_cop, trailing_light, toe, leading_corners, leading_centre, *,
+             icp_distance_m, cop_distance_m, cmp_distance_m) -> Criteria:
+    """The four checks of the module docstring (all positions world x-y, (2,); corners (4, 2) in order;
+    ``trailing_light`` a bool)."""
     pieces = polygon_pieces(leading_corners, toe)
     inside = lambda p: polygon_distance(p, pieces) <= 0.0  # noqa: E731
     near = lambda p: jnp.linalg.norm(p - leading_centre) <= icp_distance_m  # noqa: E731
     return Criteria(inside(icp_des) & inside(icp_est), near(icp_des) & near(icp_est),
-                    jnp.linalg.norm(trailing_cop - toe) <= cop_distance_m,
+                    (jnp.linalg.norm(trailing_cop - toe) <= cop_distance_m) | trailing_light,
                     polygon_distance(cmp_des, pieces) <= cmp_distance_m)
