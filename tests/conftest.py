@@ -48,7 +48,7 @@ SHARED_GROUPS = {
 
 
 # Groups that take a minute or more on 2 cores (``--durations``), longest first.
-LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "tests/mjx_coman/test_notebook_07.py", "walk-subprocesses",
+LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "walk-subprocesses",
                  "walks", "torque-walks-footstep-mpc",
                  "torque-walks-wbc-stand", "torque-walks-straight-leg", "tests/mjx_coman/test_env.py",
                  "tests/sweeps/test_sweeps.py", "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py",
