@@ -110,7 +110,7 @@ def iterations_to_tol(qp, dtype, batch: int = 64) -> dict:
 
     def kkt_at(d, cap):
         x, s, z, y, _, _ = qpax.solve_qp(d.Q, d.q, d.A, d.b, d.G, d.h, solver_tol=1e-12, max_iter=cap)
-        return wbc.kkt_residual(d.Q, d.q, d.A, d.G, d.h, x, z, y)
+        return wbc.kkt_residual(d.Q, d.q, d.A, d.b, d.G, d.h, x, z, y)
 
     pairs = (jax.tree_util.tree_map(lambda a: jnp.repeat(a, len(caps), axis=0), data), jnp.tile(caps, batch))
     # a loop, not a vmap: batched CPU LAPACK calls can deadlock (mjx_coman.wbc.batching.per_problem)

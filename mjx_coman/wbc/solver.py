@@ -1,8 +1,9 @@
 """Solving the whole-body QP with qpax, with its diagnostics, a safe fallback and forward and reverse derivatives.
 
-:func:`qpax_solve` calls ``qpax.solve_qp`` (qpax's explicit predictor-corrector interior point method)
-once and returns the primal and dual solution with qpax's convergence flag and iteration count. Its
-derivative is a ``jax.custom_jvp``: the implicit-function theorem on the KKT conditions at the solution,
+:func:`qpax_solve` runs qpax's explicit predictor-corrector interior point method (``qpax.explicit.pdip``) by
+:func:`mjx_coman.wbc.iteration.solve`: qpax's steps, stopped at a KKT tolerance or at the first non-finite step,
+keeping the best iterate (float32 breaks down late on some QPs; see that module). It returns the primal and dual
+solution with the convergence flag and the iteration count. Its derivative is a ``jax.custom_jvp``: the implicit-function theorem on the KKT conditions at the solution,
 
     Q dx + A^T dy + G^T dz = -(dQ x + dq + dA^T y + dG^T z),   A dx = db - dA x,
     G dx + ds = dh - dG x,                                      z ds + s dz = 0,
@@ -35,38 +36,44 @@ from typing import NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
-import qpax
 from qpax.explicit.pdip import factorize_kkt
 
+from mjx_coman.wbc import iteration
 from mjx_coman.wbc.batching import per_problem
 from mjx_coman.wbc.plant import N_BASE, N_CORNERS, N_FEET, Plant
 from mjx_coman.wbc.qp import QP, build_qp
 from mjx_coman.wbc.tasks import Task
 
-# per solving dtype: qpax's iteration cap (its floored flag rarely trips, see solve_qp) and KKT tolerance
-# (scaled rows, relative stationarity and max_i min(s_i, z_i)); then the largest equality residual and
-# inequality violation of an accepted solve in physical units (N, N m, m/s^2). Measured on standing QPs:
-# the KKT measure falls below 1e-9 in <= 10 iterations in float64, to ~2e-5 in ~8 in float32. In a
-# wbc-stand-sea walk float32 stalls at 2.5e-3 to 1.3e-2 on some ticks (12 or 25 iterations alike) while
-# the iterate is feasible to 2e-5 N: float32 accepts a KKT measure up to 5e-2 (a feasible point within a
-# few percent of stationarity, complementarity below 0.5 N m / 5 N). In footstep-mpc walks single float32
-# ticks stall with a bound overshot by 4e-3 to 6e-3 N m (KKT 5e-3 to 8e-3), which ended the walk as a failed
-# solve: float32 accepts 2e-2 N m / N (0.06 % of the 33 N m stall torque; the actuator clips to its limits).
-# Likewise one tick of a 0.2 m/s walk failed with a dynamics residual of 1.34e-3 N (KKT 3.5e-6), float32
-# round-off on ~300 N of contact force: float32 accepts equality residuals up to 1e-2.
-TOLERANCES = {"float64": dict(max_iter=15, kkt=1e-8, eq=1e-6, ineq=1e-6),
-              "float32": dict(max_iter=12, kkt=5e-2, eq=1e-2, ineq=2e-2)}
-QPAX_TOL = 1e-12  # below qpax's floor: its flag is not the stopping test (solve_qp)
+# per solving dtype: the iteration cap; the KKT measure (:func:`kkt_residual`) at which the iteration stops
+# (``stop``) and below which a solve is accepted (``kkt``); then the largest equality residual and inequality
+# violation of an accepted solve in physical units (N, N m, m/s^2). The measure is relative stationarity, the
+# relative duality gap and the primal residual in the QP's scaled rows. Measured on standing QPs: it falls below 1e-9 in <= 10 iterations in float64, to ~1e-5 in
+# ~8 in float32. Float32 stalls above that on some walking ticks with a feasible iterate (wbc-stand-sea: 2e-5 N);
+# it accepts 5e-2. In footstep-mpc walks single float32 ticks stall with a bound overshot by 4e-3 to 6e-3 N m,
+# which ended the walk as a failed solve: float32 accepts 2e-2 N m / N (0.06 % of the 33 N m stall torque; the
+# actuator clips to its limits). Likewise one tick of a 0.2 m/s walk failed with a dynamics residual of 1.34e-3 N,
+# float32 round-off on ~300 N of contact force: float32 accepts equality residuals up to 1e-2. In straight-leg
+# walks (a torque bound active with a multiplier of ~3e3 against the 1e4 stance-slack weight) the best float32
+# iterate before a breakdown (mjx_coman.wbc.iteration) leaves up to 0.72 N in the floating-base dynamics rows
+# (median 0.02 N over 1320 such ticks of the batched flat study, contact rows <= 2.3e-3, bounds <= 1.0e-2): an
+# error of 0.03 m/s^2 in the predicted base acceleration, not in the torques sent; float32 accepts 1 N there
+# (``eq_dynamics``, 0.35 % of COMAN's weight).
+TOLERANCES = {"float64": dict(max_iter=15, stop=1e-12, kkt=1e-8, eq=1e-6, eq_dynamics=1e-6, ineq=1e-6),
+              "float32": dict(max_iter=12, stop=1e-6, kkt=5e-2, eq=1e-2, eq_dynamics=1.0, ineq=2e-2)}
+
+
+def stop_tol(dtype) -> float:
+    """The KKT measure at which the iteration of a QP in ``dtype`` stops (:data:`TOLERANCES`)."""
+    return TOLERANCES["float64" if jnp.dtype(dtype) == jnp.float64 else "float32"]["stop"]
 
 
 class WbcInfo(NamedTuple):
     """Diagnostics of one solve.
 
     Attributes:
-        iterations: qpax's interior-point iterations (int32).
-        converged: the KKT measure ``kkt_residual`` is below the dtype's tolerance (or qpax's own flag).
-        kkt_residual: ``max(|Qx + q + A'y + G'z|_inf / (1 + |Qx|_inf + |q|_inf), max_i min(s_i, z_i))`` with
-            the true slacks ``s = h - Gx`` (clipped at 0): relative stationarity and complementarity.
+        iterations: interior-point iterations (int32).
+        converged: the KKT measure ``kkt_residual`` is below the dtype's acceptance tolerance.
+        kkt_residual: :func:`kkt_residual` of the solution: relative stationarity, duality gap, primal residual.
         eq_residual: largest ``|A x - b|`` in physical units (N, N m for the dynamics; m/s^2, rad/s^2 for
             stance feet; N, N m for the zero wrench of a lifted foot).
         ineq_violation: largest ``max(G x - h, 0)`` in physical units (N m for torques, N for forces).
@@ -92,11 +99,12 @@ class WbcSolution(NamedTuple):
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(6, 7))
 def qpax_solve(Q, q, A, b, G, h, tol: float, max_iter: int):
-    """``(x, s, z, y, converged, iterations)`` of ``qpax.solve_qp`` (the last two as floats), differentiable
-    in forward and reverse mode by the implicit-function theorem (module docstring)."""
+    """``(x, s, z, y, converged, iterations)`` of qpax's iteration (:func:`mjx_coman.wbc.iteration.solve`, stopped
+    at the KKT measure ``tol``; the last two as floats), differentiable in forward and reverse mode by the
+    implicit-function theorem (module docstring)."""
 
     def one(Q, q, A, b, G, h):
-        x, s, z, y, conv, iters = qpax.solve_qp(Q, q, A, b, G, h, solver_tol=tol, max_iter=max_iter)
+        x, s, z, y, conv, iters = iteration.solve(Q, q, A, b, G, h, tol, max_iter)
         return x, s, z, y, jnp.asarray(conv, Q.dtype), jnp.asarray(iters, Q.dtype)
 
     return per_problem(one)(Q, q, A, b, G, h)
@@ -142,30 +150,23 @@ def solve_dtype(dtype, float64: bool):
     return jnp.dtype(dtype)
 
 
-def kkt_residual(Q, q, A, G, h, x, z, y) -> jax.Array:
-    """The KKT measure of :class:`WbcInfo` (relative stationarity, complementarity ``max_i min(s_i, z_i)``)."""
-    qx = Q @ x
-    stat = jnp.max(jnp.abs(qx + q + A.T @ y + G.T @ z)) / (1.0 + jnp.max(jnp.abs(qx)) + jnp.max(jnp.abs(q)))
-    comp = jnp.max(jnp.minimum(jnp.maximum(h - G @ x, 0.0), jnp.maximum(z, 0.0)))
-    return jnp.maximum(stat, comp)
+kkt_residual = iteration.kkt_measure  # the measure of WbcInfo: relative stationarity, duality gap, primal residual
 
 
 def solve_qp(qp: QP, *, float64: bool = False, max_iter: int | None = None, retry_iter: int | None = None):
     """Solve an assembled :class:`~mjx_coman.wbc.qp.QP`: ``(x, info)`` with ``x`` in the QP's dtype.
 
-    qpax floors ``s`` and ``z`` at sqrt(eps) (1.5e-8 in float64, 3.5e-4 in float32) before it computes the
-    KKT residual of its stopping test, so that test cannot pass below ~sqrt(eps) times the largest slack
-    or active multiplier even where the iterates have converged (measured: qpax's flag never trips at 1e-8
-    in float64 nor at 1e-3 in float32 on these QPs, while the iterates agree with proxsuite to 6e-11 and
-    2e-5). The iterations therefore run to ``max_iter`` and convergence is judged on the returned iterate
-    by :func:`kkt_residual`, without the floor. A failed solve (not converged, residuals above
-    tolerance, or not finite) gives ``info.ok = False`` and ``x`` with non-finite entries set to zero.
+    The iteration (:mod:`mjx_coman.wbc.iteration`) stops where :func:`kkt_residual` is below the solving dtype's
+    ``stop`` tolerance or a step turns non-finite, keeping the iterate with the lowest measure; the solve is
+    accepted where that measure is below ``kkt`` and the residuals below ``eq_dynamics`` (the 6 floating-base
+    rows), ``eq`` (the contact rows) and ``ineq`` (:data:`TOLERANCES`).
+    A failed solve (not converged, residuals above tolerance, or not finite) gives ``info.ok = False`` and ``x``
+    with non-finite entries set to zero.
 
     ``retry_iter`` (static, below ``max_iter``): solve the same QP again stopped after ``retry_iter``
-    iterations and take that solution where the full solve failed. In float32 the interior point can break
-    down late: a straight-leg QP after a push solved at 12 iterations (KKT 4e-3) and was non-finite at 20
-    and 30, its barrier ratios ``z / s`` past what a float32 Cholesky factor holds. Both solves run (a vmap
-    selects), so a retry costs its iterations on every problem.
+    iterations and take that solution where the full solve failed (its iterate can pass the residual tests
+    where the best-measure one does not). Both solves run (a vmap selects), so a retry costs its iterations
+    on every problem.
 
     Args:
         float64: solve in float64 when x64 is enabled (static; see :func:`solve_dtype`).
@@ -194,14 +195,16 @@ def _solve_once(qp: QP, sdt, tols: dict, max_iter: int):
     """One qpax solve of ``qp`` in ``sdt`` and its diagnostics (:func:`solve_qp`)."""
     dtype = qp.Q.dtype
     Q, q, A, b, G, h = (jnp.asarray(a, sdt) for a in (qp.Q, qp.q, qp.A, qp.b, qp.G, qp.h))
-    x, _, z, y, conv, iters = qpax_solve(Q, q, A, b, G, h, QPAX_TOL, max_iter)
+    x, _, z, y, conv, iters = qpax_solve(Q, q, A, b, G, h, tols["stop"], max_iter)
     x_, z_, y_ = (jax.lax.stop_gradient(v) for v in (x, z, y))
-    kkt = kkt_residual(Q, q, A, G, h, x_, z_, y_)
-    eq = jnp.max(jnp.abs(qp.eq_scale.astype(sdt) * (A @ x_ - b)))
+    kkt = kkt_residual(Q, q, A, b, G, h, x_, z_, y_)
+    eq_rows = jnp.abs(qp.eq_scale.astype(sdt) * (A @ x_ - b))
+    eq = jnp.max(eq_rows)
+    eq_ok = (jnp.max(eq_rows[:N_BASE]) < tols["eq_dynamics"]) & (jnp.max(eq_rows[N_BASE:]) < tols["eq"])
     viol = jnp.maximum(jnp.max(qp.ineq_scale.astype(sdt) * (G @ x_ - h)), 0.0)
     finite = jnp.all(jnp.isfinite(x_)) & jnp.isfinite(kkt)
     converged = ((jax.lax.stop_gradient(conv) > 0.5) | (kkt < tols["kkt"])) & finite
-    ok = converged & (eq < tols["eq"]) & (viol < tols["ineq"])
+    ok = converged & eq_ok & (viol < tols["ineq"])
     x = jnp.where(jnp.isfinite(x), x, 0.0).astype(dtype)
     inf = jnp.asarray(jnp.inf, sdt)
     info = WbcInfo(jax.lax.stop_gradient(iters).astype(jnp.int32), converged, jnp.where(finite, kkt, inf).astype(dtype),

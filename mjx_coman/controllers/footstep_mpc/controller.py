@@ -131,5 +131,5 @@ def step(config: Config, state: State, obs):
 
 def _mpc_qp_solver(Q, q, A, b, G, h):
     """The planner's QP by the whole-body QP's qpax wrapper (forward and reverse derivatives, CPU batching)."""
-    return wbc.qpax_solve(Q, q, A, b, G, h, wbc.solver.QPAX_TOL, MPC_QP_MAX_ITER)
+    return wbc.qpax_solve(Q, q, A, b, G, h, wbc.solver.stop_tol(Q.dtype), MPC_QP_MAX_ITER)
 
