@@ -17,7 +17,7 @@ NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "07_straight_leg.
 
 RUNS = [("flat", "straight-leg"), ("flat", "bent-knee"), ("toe-off", "straight-leg"),
         ("toe-off", "straight-leg-no-toe-off"), ("stairs", "straight-leg"), ("mid-swing-push", "straight-leg"),
-        ("mid-swing-push", "straight-leg-step-adjust")]
+        ("mid-swing-push", "straight-leg-step-adjust"), ("mid-swing-push", "bent-knee")]
 
 
 def test_the_notebook_shows_each_experiment_for_each_variant_and_they_plan():
