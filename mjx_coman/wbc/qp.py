@@ -116,7 +116,7 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         contact_slack_weight: ``None`` (hard stance rows) or the weight of the stance-row slacks (module
             docstring), per (m/s^2)^2.
         toe_off: ``None`` or (2,) 1 for a stance foot on its toe (:mod:`mjx_coman.wbc.contacts`): its heel
-            forces are cut and its pitch freed; needs ``contact_slack_weight``.
+            forces are cut and its pitch freed; needs ``contact_slack_weight``. Ignored for a lifted foot.
 
     Raises:
         ValueError: wrong plant shapes, no tasks, or ``upper_acc`` given or missing against
@@ -141,7 +141,9 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     qdd_offset = jnp.zeros(nv, dt)
     if fixed_upper_body:
         qdd_offset = qdd_offset.at[n_q:].set(jnp.broadcast_to(jnp.asarray(upper_acc, dt), (nv - n_q,)))
-    share = jnp.eye(N_FORCES, dtype=dt) if toe_off is None else force_share(jnp.asarray(toe_off, dt))
+    if toe_off is not None:  # a lifted foot is never on its toe (its zero-wrench rows would lose rank)
+        toe_off = jnp.asarray(toe_off, dt) * (jnp.asarray(contact_mask) > 0.5).astype(dt)
+    share = jnp.eye(N_FORCES, dtype=dt) if toe_off is None else force_share(toe_off)
     force_map = jnp.zeros((N_FORCES, n), dt).at[:, n_q:n_f].set(FORCE_SCALE_N * share)
 
     # dynamics (seed 001 eq. 1): M qdd + h - passive - J_c^T (mask f) = S^T tau

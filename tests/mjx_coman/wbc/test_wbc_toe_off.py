@@ -108,3 +108,20 @@ def test_toe_off_without_stance_slack_is_refused():
     lim = np.full(23, 33.0)
     with pytest.raises(ValueError, match="toe_off needs contact_slack_weight"):
         wbc.build_qp(p, [wbc.qdd_regularization(1.0, 29)], (1, 1), -lim, lim, toe_off=np.array([1.0, 0.0]))
+
+
+def test_a_lifted_foots_toe_off_is_ignored():
+    """A toe-off flag on a lifted foot would cut its heel forces under its zero-wrench rows, leaving them without
+    rank (the KKT matrix singular: qpax's first factorization non-finite, seen in batched bent-knee walks): the
+    QP is the one without the flag, and it solves."""
+    p = ref.standing_plants(mjx_coman.load_model(), 1, seed=5)[0][2]
+    lim = np.full(23, TAU_LIMIT_NM)
+    mask = np.array([0.0, 1.0])  # right foot lifted
+    tasks = [wbc.qdd_regularization(1.0, 29), wbc.force_regularization(1e-4)]
+    kw = dict(friction_coeff=MU, contact_slack_weight=SLACK_W)
+    flagged = wbc.build_qp(p, tasks, mask, -lim, lim, toe_off=np.array([1.0, 0.0]), **kw)
+    plain = wbc.build_qp(p, tasks, mask, -lim, lim, toe_off=np.array([0.0, 0.0]), **kw)
+    for a, b in zip(flagged, plain):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert np.linalg.matrix_rank(np.asarray(flagged.A)) == flagged.A.shape[0]
+    assert bool(wbc.solve_qp(flagged, max_iter=40)[1].ok)
