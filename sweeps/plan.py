@@ -3,6 +3,7 @@ each, from its options, presets (:mod:`sweeps.presets`) and scenario axes (:mod:
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from sweeps import scenario_args
@@ -76,10 +77,13 @@ def _given(args) -> bool:
 
 
 def _config(fields: dict, args, controller: str) -> SweepConfig:
-    from sweeps.models import check
+    """The run's config; fields the controller fixes itself (mjx: its step time) unless given."""
+    from sweeps.models import check, get_model
 
     cfg = SweepConfig(**dict(fields, controller=controller))
-    return check(cfg.with_overrides(_controller_overrides(args, cfg.model, controller)), build=False)
+    cfg = check(cfg.with_overrides(_controller_overrides(args, cfg.model, controller)), build=False)
+    own = {k: v for k, v in get_model(cfg.model).own_fields(cfg).items() if k not in fields}
+    return dataclasses.replace(cfg, **own) if own else cfg
 
 
 def plan_runs(args) -> list[tuple[Path, SweepConfig, bool, str]]:

@@ -115,6 +115,8 @@ class Model(NamedTuple):
         env_step_s: ``env_step_s(config) -> float``, the simulated time of one environment step.
         tune_problem: optional ``(tune_config) -> TuneProblem``.
         holdout_grid: the default held-out grid (``SweepConfig`` fields and ``directions``) of a tuning record.
+        own_fields: ``(config) -> dict``: ``SweepConfig`` fields the controller fixes itself (mjx: its gait's
+            ``step_time_s``), taken where the command line does not give them.
     """
 
     rollout: Callable[[SweepConfig, RolloutInputs, Any], RolloutOutputs] | None
@@ -128,6 +130,7 @@ class Model(NamedTuple):
     env_step_s: Callable[[SweepConfig], float] | None = None
     tune_problem: Callable[[Any], TuneProblem] | None = None
     holdout_grid: Callable[[dict], dict] | None = None
+    own_fields: Callable[[SweepConfig], dict] = lambda config: {}
 
 
 # name -> module whose ``load() -> Model`` builds the model (imported on first use)

@@ -103,6 +103,16 @@ def check(config: SweepConfig, build: bool = True) -> None:
             raise GridError(f"scenario: {e}") from None
 
 
+def own_fields(config: SweepConfig) -> dict:
+    """The controller's own step time (its gait's, with the config's overrides): a walk of ``n_steps`` of it."""
+    ctrls = _controllers()
+    try:
+        _, cfg = ctrls.load(config.controller, config.overrides())
+        return {"step_time_s": float(ctrls.get(config.controller).gait(cfg).step_time_s)}
+    except ValueError as e:
+        raise GridError(f"controller {config.controller}: {e}") from None
+
+
 def nominal_env(sensor_noise_scale: float, plant: str = "position"):
     """The nominal robot's environment parameters on a controller's plant (``Gait.plant``:
     :func:`mjx_coman.rollout.plant_env_params`) with the sensor noise scaled (host-built, cached per float width)."""
@@ -414,4 +424,5 @@ def load() -> Model:
     """The registry entry."""
     return Model(rollout, ticks_per_rollout, controllers=controller_names, compare_default=compare_default,
                  settings=settings, check=check, prepare=prepare,
-                 env_step_s=env_step_s, tune_problem=tune_problem, holdout_grid=holdout_grid)
+                 env_step_s=env_step_s, tune_problem=tune_problem, holdout_grid=holdout_grid,
+                 own_fields=own_fields)

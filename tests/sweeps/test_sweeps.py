@@ -325,6 +325,26 @@ def test_presets_and_overrides(argv, expected, tmp_path):
             assert all(dict(c.scenario)["delay_ms"] == (10.0,) for c in cfgs)
 
 
+def test_an_mjx_run_walks_at_its_controllers_own_step_time_unless_one_is_given(tmp_path, capsys):
+    """compare's default list mixes 0.4 s and 0.6 s gaits: each run takes its controller's step time; an
+    explicit --step-time is kept, and one a controller does not walk at is one line naming both, exit 2."""
+    from mjx_coman import controllers
+    from sweeps.cli import build_parser, main
+    from sweeps.plan import plan_runs
+
+    plans = plan_runs(build_parser().parse_args(["compare", "--model", "mjx", "--out", str(tmp_path)]))
+    for _, cfg, _, _ in plans:
+        _, own = controllers.load(cfg.controller)
+        assert cfg.step_time_s == pytest.approx(controllers.get(cfg.controller).gait(own).step_time_s)
+    assert {cfg.step_time_s for _, cfg, _, _ in plans} == {0.4, 0.6}
+    argv = ["map", "--model", "mjx", "--controller", "straight-leg", "--out", str(tmp_path / "m")]
+    assert plan_runs(build_parser().parse_args([*argv, "--step-time", "0.4"]))[0][1].step_time_s == 0.4
+    with pytest.raises(SystemExit) as e:
+        main([*argv, "--step-time", "0.4"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "step_time_s=0.4" in err and "0.6" in err
+
+
 def test_controllers_command_lists_every_registered_controller(capsys):
     from mjx_coman import controllers
     from sweeps.cli import main
