@@ -9,6 +9,13 @@ solve runs all its iterations; and in float32 a late step can turn the iterate n
 iteration 9, while iteration 8 was within 0.17 of proxsuite's float64 solution on accelerations of up to 58 and
 1e-4 of its optimal cost). :func:`solve` runs the same steps, qpax's own functions in qpax's order, and stops when
 :func:`kkt_measure` is below ``tol`` or a step is not finite, returning the iterate with the lowest measure.
+
+Two changes to the linear algebra of each step, none to the method: the reduced matrix is factored with its diagonal
+raised by ``eps * max(diag)`` (so its Cholesky factor stays finite where rounding makes it numerically indefinite), and
+each Newton direction gets one step of iterative refinement against the unperturbed system (the residual of the
+Newton equations solved again with the same factors). On 1423 float32 QPs recorded where the plain iteration failed
+(straight-leg, no-toe-off and bent-knee studies) this accepts 1415 against 167, with costs within 9e-4 (median 4e-6)
+relative of proxqp's float64 optimum on 150 of them.
 """
 
 from __future__ import annotations
@@ -31,17 +38,37 @@ def kkt_measure(Q, q, A, b, G, h, x, z, y) -> jax.Array:
     return jnp.maximum(jnp.maximum(stat, gap), primal)
 
 
+def _factorize_kkt(Q, G, A, s, z):
+    """qpax's ``factorize_kkt`` with ``eps * max(diag)`` added to the diagonal of ``H = Q + G' diag(z / s) G``."""
+    p_inv = z / s
+    H = Q + G.T @ (G.T * p_inv).T
+    H = H + jnp.finfo(H.dtype).eps * jnp.max(jnp.diag(H)) * jnp.eye(H.shape[0], dtype=H.dtype)
+    l_h = jax.scipy.linalg.cho_factor(H)
+    l_f = jax.scipy.linalg.cho_factor(A @ jax.scipy.linalg.cho_solve(l_h, A.T))
+    return p_inv, l_h, l_f
+
+
+def _solve_kkt(Q, G, A, s, z, factors, v):
+    """qpax's ``solve_kkt_rhs`` for the Newton equations ``Q dx + A'dy + G'dz = v1, s dz + z ds = v2,
+    G dx + ds = v3, A dx = v4``, then one step of iterative refinement on their residual (same factors)."""
+    d = pdip.solve_kkt_rhs(G, A, s, z, *factors, *v)
+    dx, ds, dz, dy = d
+    r = (v[0] - (Q @ dx + A.T @ dy + G.T @ dz), v[1] - (s * dz + z * ds), v[2] - (G @ dx + ds), v[3] - A @ dx)
+    return tuple(a + c for a, c in zip(d, pdip.solve_kkt_rhs(G, A, s, z, *factors, *r)))
+
+
 def _step(Q, q, A, b, G, h, st: pdip.QPState) -> pdip.QPState:
-    """One predictor-corrector step of ``qpax.explicit.pdip.solve_qp`` (its floors, centring and step length)."""
+    """One predictor-corrector step of ``qpax.explicit.pdip.solve_qp`` (its floors, centring and step length), with
+    the factorization and refined solves above."""
     floor = jnp.sqrt(jnp.finfo(st.s.dtype).eps)
     x, y = st.x, st.y
     s, z = jnp.maximum(st.s, floor), jnp.maximum(st.z, floor)
     r1, r2, r3, r4 = Q @ x + q + A.T @ y + G.T @ z, s * z, G @ x + s - h, A @ x - b
-    p_inv, l_h, l_f = pdip.factorize_kkt(Q, G, A, s, z)
-    _, ds_a, dz_a, _ = pdip.solve_kkt_rhs(G, A, s, z, p_inv, l_h, l_f, -r1, -r2, -r3, -r4)
+    factors = _factorize_kkt(Q, G, A, s, z)
+    _, ds_a, dz_a, _ = _solve_kkt(Q, G, A, s, z, factors, (-r1, -r2, -r3, -r4))
     sigma, mu = pdip.centering_params(s, z, ds_a, dz_a)
     r2 = r2 - (sigma * mu - ds_a * dz_a)
-    dx, ds, dz, dy = pdip.solve_kkt_rhs(G, A, s, z, p_inv, l_h, l_f, -r1, -r2, -r3, -r4)
+    dx, ds, dz, dy = _solve_kkt(Q, G, A, s, z, factors, (-r1, -r2, -r3, -r4))
     alpha = 0.99 * jnp.minimum(pdip.ort_linesearch(s, ds), pdip.ort_linesearch(z, dz))
     return pdip.QPState(x + alpha * dx, s + alpha * ds, z + alpha * dz, y + alpha * dy)
 
