@@ -5,7 +5,9 @@ on which qpax.solve_qp and qpax's plain steps break down.
 The recorded QPs: data/straight_leg_breakdown_qp.npz, a float32 straight-leg whole-body QP from the batched ``flat``
 study at 0.19 m/s, a torque bound active with a multiplier of 3.4e3 against the 1e4 stance-slack weight;
 data/straight_leg_failed_qps.npz, 8 float32 QPs of the batched ``toe-off`` and ``flat`` studies of the straight-leg
-family that qpax's plain steps (the iteration before the regularized factorization) failed to solve.
+family that qpax's plain steps (the iteration before the regularized factorization) failed to solve;
+data/zero_row_qp.npz, a float32 bent-knee QP of the batched ``flat`` study with a zero equality row (a toe-off foot's
+free pitch without its slack column).
 """
 
 from __future__ import annotations
@@ -100,6 +102,17 @@ def test_recorded_failed_float32_qps_are_solved_to_proxqps_cost():
     assert sum(plain_ok) <= 2
 
 
+def test_a_zero_equality_row_is_solved_where_qpaxs_starting_point_is_not_finite():
+    qp = _load("zero_row_qp.npz")
+    assert np.sum(np.all(np.asarray(qp[2]) == 0, axis=1)) == 1 and float(np.abs(qp[3][np.all(np.asarray(qp[2]) == 0, axis=1)]).max()) == 0
+    st = pdip.initialize(pdip.QPData(0.5 * (qp[0] + qp[0].T), *qp[1:]))
+    assert not np.all(np.isfinite(np.asarray(st.x)))  # F = A H^-1 A' is singular
+    x, s, z, y, conv, k = jax.jit(iteration.solve, static_argnums=(6, 7))(*qp, 1e-6, 20)
+    assert np.all(np.isfinite(np.asarray(x))) and _judge(qp, x)
+    xr = _reference(qp)
+    assert abs(_cost(qp, x) - _cost(qp, xr)) < 1e-5 * (1 + abs(_cost(qp, xr)))  # measured 3e-9
+
+
 def test_steps_are_qpaxs_up_to_rounding_and_the_lowest_measure_iterate_is_returned():
     """float64, no stop (tol 0): the result is the lowest-measure one of qpax's own iterates 0..k (the refined
     factorization changes float64 steps only by rounding)."""
@@ -111,7 +124,7 @@ def test_steps_are_qpaxs_up_to_rounding_and_the_lowest_measure_iterate_is_return
             cands = []
             for j in range(k + 1):
                 if j == 0:
-                    st = pdip.initialize(pdip.QPData(0.5 * (qp[0] + qp[0].T), *qp[1:]))
+                    st = iteration._initialize(0.5 * (qp[0] + qp[0].T), *qp[1:])
                     xj, zj, yj = st.x, st.z, st.y
                 else:
                     xj, _, zj, yj, _, _ = qpax.solve_qp(*qp, solver_tol=1e-300, max_iter=j)
