@@ -47,8 +47,10 @@ def test_unknown_size_is_an_argparse_error(capsys):
     assert e.value.code == 2 and capsys.readouterr().err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_a_small_experiment_prints_strict_json_and_draws_its_figure(tmp_path, tmp_path_factory):
-    """The same compiled walk as notebook 06's small experiments (JAX's persistent cache, shared)."""
+    """The same compiled walk as notebook 06's small experiments (JAX's persistent cache, shared). Slow (about
+    100 s with the compilation): the default suite runs the studies through notebook 06."""
     import json
     import os
     import subprocess

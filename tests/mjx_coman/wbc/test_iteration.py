@@ -84,18 +84,19 @@ def test_recorded_failed_float32_qps_are_solved_to_proxqps_cost():
     d = np.load(DATA / "straight_leg_failed_qps.npz")
     qps = [[jnp.asarray(d[k][i]) for k in ("Q", "q", "A", "b", "G", "h")] for i in range(len(d["Q"]))]
     solve = jax.jit(iteration.solve, static_argnums=(6, 7))
+    old = iteration._step
+    iteration._step = _plain_step
+    try:  # traced once with qpax's plain steps, then reused
+        plain = jax.jit(lambda *a: iteration.solve(*a, 1e-6, 20)).lower(*qps[0]).compile()  # its own cache entry
+    finally:
+        iteration._step = old
     plain_ok = []
     for qp in qps:
         x, s, z, y, conv, k = solve(*qp, 1e-6, 20)
         assert float(iteration.kkt_measure(*qp, x, z, y)) < 5e-2 and _judge(qp, x)
         xr = _reference(qp)
         assert abs(_cost(qp, x) - _cost(qp, xr)) < 2e-3 * (1 + abs(_cost(qp, xr)))  # measured <= 9e-4 on 150
-        old = iteration._step
-        iteration._step = _plain_step
-        try:
-            xp, _, zp, yp, _, _ = iteration.solve(*qp, 1e-6, 20)
-        finally:
-            iteration._step = old
+        xp, _, zp, yp, _, _ = plain(*qp)
         plain_ok.append(bool(np.all(np.isfinite(np.asarray(xp)))) and _judge(qp, xp)
                         and float(iteration.kkt_measure(*qp, xp, zp, yp)) < 5e-2)
     # each was a failed solve with qpax's plain steps where recorded; run apart, rounding saves one or two (1 of 8)
