@@ -87,9 +87,8 @@ def check(config: SweepConfig, build: bool = True) -> None:
     check_settings("mjx", config.controller, ctrl.settings, config.overrides())
     if not build:
         return
+    gait = _gait(config)
     try:
-        _, cfg = ctrls.load(config.controller, config.overrides())
-        gait = ctrl.gait(cfg)
         gait.check_joystick(config.speed_mps)
     except ValueError as e:
         raise GridError(f"controller {config.controller}: {e}") from None
@@ -103,14 +102,20 @@ def check(config: SweepConfig, build: bool = True) -> None:
             raise GridError(f"scenario: {e}") from None
 
 
-def own_fields(config: SweepConfig) -> dict:
-    """The controller's own step time (its gait's, with the config's overrides): a walk of ``n_steps`` of it."""
+def _gait(config: SweepConfig):
+    """The controller's :class:`~mjx_coman.controllers.base.Gait` with the config's overrides (GridError naming a
+    bad value)."""
     ctrls = _controllers()
     try:
         _, cfg = ctrls.load(config.controller, config.overrides())
-        return {"step_time_s": float(ctrls.get(config.controller).gait(cfg).step_time_s)}
+        return ctrls.get(config.controller).gait(cfg)
     except ValueError as e:
         raise GridError(f"controller {config.controller}: {e}") from None
+
+
+def own_fields(config: SweepConfig) -> dict:
+    """The controller's own step time (its gait's, with the config's overrides): a walk of ``n_steps`` of it."""
+    return {"step_time_s": float(_gait(config).step_time_s)}
 
 
 def nominal_env(sensor_noise_scale: float, plant: str = "position"):
