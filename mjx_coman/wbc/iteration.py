@@ -41,7 +41,8 @@ def kkt_measure(Q, q, A, b, G, h, x, z, y) -> jax.Array:
 
 def _factor(M):
     """Cholesky factor of ``M + eps * max(diag M) I`` (finite where rounding leaves ``M`` numerically singular)."""
-    return jax.scipy.linalg.cho_factor(M + jnp.finfo(M.dtype).eps * jnp.max(jnp.diag(M)) * jnp.eye(M.shape[0], dtype=M.dtype))
+    shift = jnp.finfo(M.dtype).eps * jnp.max(jnp.diag(M))
+    return jax.scipy.linalg.cho_factor(M + shift * jnp.eye(M.shape[0], dtype=M.dtype))
 
 
 def _factorize_kkt(Q, G, A, s, z):

@@ -17,13 +17,18 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 import qpax
 import qpsolvers
 from qpax.explicit import pdip
 
 from mjx_coman.wbc import iteration
+from mjx_coman.wbc.plant import N_BASE
+from mjx_coman.wbc.qp import FORCE_SCALE_N, N_SLACK, TORQUE_SCALE_NM
+from mjx_coman.wbc.solver import TOLERANCES
 
 DATA = Path(__file__).parent / "data"
+N_ACTUATED = 23  # COMAN's actuated joints: the QP's first 2 x 23 inequality rows are its torque bounds
 
 
 def _load(name, dtype=np.float32):
@@ -42,17 +47,14 @@ def _cost(qp, x):
     return 0.5 * x @ Q @ x + q @ x
 
 
-def _plain_step(Q, q, A, b, G, h, st):
-    """qpax's own step: its factorization and solves, unrefined."""
-    floor = jnp.sqrt(jnp.finfo(st.s.dtype).eps)
-    s, z = jnp.maximum(st.s, floor), jnp.maximum(st.z, floor)
-    r1, r2, r3, r4 = Q @ st.x + q + A.T @ st.y + G.T @ z, s * z, G @ st.x + s - h, A @ st.x - b
-    f = pdip.factorize_kkt(Q, G, A, s, z)
-    _, ds_a, dz_a, _ = pdip.solve_kkt_rhs(G, A, s, z, *f, -r1, -r2, -r3, -r4)
-    sigma, mu = pdip.centering_params(s, z, ds_a, dz_a)
-    dx, ds, dz, dy = pdip.solve_kkt_rhs(G, A, s, z, *f, -r1, -(r2 - (sigma * mu - ds_a * dz_a)), -r3, -r4)
-    alpha = 0.99 * jnp.minimum(pdip.ort_linesearch(s, ds), pdip.ort_linesearch(z, dz))
-    return pdip.QPState(st.x + alpha * dx, s + alpha * ds, z + alpha * dz, st.y + alpha * dy)
+def _plain(qp):
+    """``iteration.solve`` compiled with qpax's own starting point, factorization and solves (no diagonal shift, no
+    refinement): the iteration before the regularized factorization."""
+    with pytest.MonkeyPatch.context() as mp:  # traced once while patched; a lambda keeps its own jit cache entry
+        mp.setattr(iteration, "_initialize", lambda Q, q, A, b, G, h: pdip.initialize(pdip.QPData(Q, q, A, b, G, h)))
+        mp.setattr(iteration, "_factorize_kkt", pdip.factorize_kkt)
+        mp.setattr(iteration, "_solve_kkt", lambda Q, G, A, s, z, f, v: pdip.solve_kkt_rhs(G, A, s, z, *f, *v))
+        return jax.jit(lambda *a: iteration.solve(*a, 1e-6, 20)).lower(*qp).compile()
 
 
 def test_float32_breakdown_of_qpax_does_not_happen_and_the_solution_is_proxqps():
@@ -68,28 +70,24 @@ def test_float32_breakdown_of_qpax_does_not_happen_and_the_solution_is_proxqps()
 
 
 def _judge(qp, x):
-    """The float32 acceptance of mjx_coman.wbc.solver in physical units: rows scaled as build_qp scales them
-    (dynamics and lifted-foot rows by 100 N, torques by 10 N m, forces by 100 N; stance rows carry slack)."""
+    """The float32 acceptance of mjx_coman.wbc.solver (:data:`TOLERANCES`) in physical units, rows scaled as build_qp
+    scales them (dynamics and lifted-foot rows in N, torque rows in N m, force rows in N; stance rows carry slack)."""
+    tol = TOLERANCES["float32"]
     Q, q, A, b, G, h = (np.asarray(a, np.float64) for a in qp)
     x = np.asarray(x, np.float64)
-    n_f = Q.shape[0] - 12
-    stance = np.any(A[:, n_f:] != 0, axis=1)
-    eq = np.abs(np.where(np.arange(len(b)) < 6, 100.0, np.where(stance, 1.0, 100.0)) * (A @ x - b))
-    n_tau = 2 * 23
-    viol = np.max(np.where(np.arange(len(h)) < n_tau, 10.0, 100.0) * (G @ x - h))
-    return eq[:6].max() < 1.0 and eq[6:].max() < 1e-2 and viol < 2e-2
+    stance = np.any(A[:, Q.shape[0] - N_SLACK:] != 0, axis=1)
+    rows = np.arange(len(b))
+    eq = np.abs(np.where((rows < N_BASE) | ~stance, FORCE_SCALE_N, 1.0) * (A @ x - b))
+    ineq_scale = np.where(np.arange(len(h)) < 2 * N_ACTUATED, TORQUE_SCALE_NM, FORCE_SCALE_N)
+    viol = np.max(ineq_scale * (G @ x - h))
+    return eq[:N_BASE].max() < tol["eq_dynamics"] and eq[N_BASE:].max() < tol["eq"] and viol < tol["ineq"]
 
 
 def test_recorded_failed_float32_qps_are_solved_to_proxqps_cost():
     d = np.load(DATA / "straight_leg_failed_qps.npz")
     qps = [[jnp.asarray(d[k][i]) for k in ("Q", "q", "A", "b", "G", "h")] for i in range(len(d["Q"]))]
     solve = jax.jit(iteration.solve, static_argnums=(6, 7))
-    old = iteration._step
-    iteration._step = _plain_step
-    try:  # traced once with qpax's plain steps, then reused
-        plain = jax.jit(lambda *a: iteration.solve(*a, 1e-6, 20)).lower(*qps[0]).compile()  # its own cache entry
-    finally:
-        iteration._step = old
+    plain = _plain(qps[0])
     plain_ok = []
     for qp in qps:
         x, s, z, y, conv, k = solve(*qp, 1e-6, 20)
@@ -105,7 +103,8 @@ def test_recorded_failed_float32_qps_are_solved_to_proxqps_cost():
 
 def test_a_zero_equality_row_is_solved_where_qpaxs_starting_point_is_not_finite():
     qp = _load("zero_row_qp.npz")
-    assert np.sum(np.all(np.asarray(qp[2]) == 0, axis=1)) == 1 and float(np.abs(qp[3][np.all(np.asarray(qp[2]) == 0, axis=1)]).max()) == 0
+    zero = np.all(np.asarray(qp[2]) == 0, axis=1)
+    assert zero.sum() == 1 and float(np.asarray(qp[3])[zero][0]) == 0.0  # one zero row, consistent (b = 0)
     st = pdip.initialize(pdip.QPData(0.5 * (qp[0] + qp[0].T), *qp[1:]))
     assert not np.all(np.isfinite(np.asarray(st.x)))  # F = A H^-1 A' is singular
     x, s, z, y, conv, k = jax.jit(iteration.solve, static_argnums=(6, 7))(*qp, 1e-6, 20)
