@@ -263,6 +263,28 @@ def _all_finite(tree) -> jax.Array:
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
 
 
+def batched_like(tree, *refs):
+    """``tree`` with a zero from every leaf of ``refs`` added: under ``vmap``, batched wherever a ref is.
+
+    A scan's batching rule re-batches its body until the carries it makes batched are batched on entry too;
+    a carry that starts as a constant (a zero counter, an empty record) costs one more pass per level of
+    nesting. The zero is an integer ``x & 0``, which XLA folds away: only the trace changes.
+    """
+    zero = jnp.zeros((), jnp.int32)
+    for x in jax.tree_util.tree_leaves(refs):
+        x = jnp.asarray(x)
+        if x.size and not jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+            zero = zero + (jnp.ravel(x)[0].astype(jnp.int32) & 0)
+
+    def add(x):
+        x = jnp.asarray(x)
+        if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+            return x  # a typed key: left as it is
+        return x | zero.astype(bool) if x.dtype == bool else x + zero.astype(x.dtype)
+
+    return jax.tree_util.tree_map(add, tree)
+
+
 def _select(pred, a, b):
     return jax.tree_util.tree_map(lambda x, y: jnp.where(pred, x, y), a, b)
 
@@ -344,16 +366,18 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
     f = env0.time_s.dtype
     ctrl0 = controller.init(config, env_params, jax.random.fold_in(key, 1))
     obs0 = Observation(env0.readings, joystick, jnp.zeros((), f), env0.data if controller.privileged else None)
-    shapes = jax.eval_shape(controller.step, config, ctrl0, obs0)
+    step = jax.jit(controller.step)  # traced once: the shapes below, then the tick reuses the trace
+    shapes = jax.eval_shape(step, config, ctrl0, obs0)
     tel0, cmd0 = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), (shapes[2], shapes[1]))
     carry0 = _Carry(env=env0, ctrl=ctrl0, telemetry=tel0, command=cmd0, judge=gt.init(judge, spec.seconds, f),
                     fallen=jnp.zeros((), bool), nan=jnp.zeros((), bool), failed=jnp.zeros((), bool), fall_time=jnp.full((), jnp.inf, f),
                     max_adj=jnp.zeros((), f))
+    carry0 = batched_like(carry0, key, push, config)
 
     def tick(c: _Carry, k):
         time = k.astype(f) * dt
         obs = Observation(c.env.readings, joystick, time, c.env.data if controller.privileged else None)
-        cs, cmd, tel = controller.step(config, c.ctrl, obs)
+        cs, cmd, tel = step(config, c.ctrl, obs)
         cmd = cmd._replace(torso_force_n=_push_force(push, time, dt).astype(f))
         e = env_mod.step(env_params, c.env, cmd)
         finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, cmd, tel._replace(extra=())))
