@@ -54,7 +54,9 @@ def test_float32_solves_agree_with_float64_proxsuite():
         binding += int(np.sum(e["h"] - e["G"] @ xr < 1e-7))
         assert np.max(np.abs(x[j] - xr)) < 2e-4, (j, np.max(np.abs(x[j] - xr)))
         tau, tau_r = one_qp.tau_map @ x[j] + one_qp.tau_offset, one_qp.tau_map @ xr + one_qp.tau_offset
-        assert np.max(np.abs(tau - tau_r)) < 2e-3, (j, np.max(np.abs(tau - tau_r)))  # N m
+        # N m: stopped at float32's KKT measure of 1e-5 the torques are within 8.2e-3 N m (0.03 % of the 33 N m
+        # stall torque; 2e-3 with a stop at 1e-6, which costs twice the iterations on walking ticks)
+        assert np.max(np.abs(tau - tau_r)) < 1e-2, (j, np.max(np.abs(tau - tau_r)))
     assert binding >= 10  # some rows bind (single support, 8 N m): not only easy problems
 
 
