@@ -15,8 +15,9 @@ to ``--out``. With no grid option (or with ``--preset``) it runs a preset,
 one subfolder per run. ``compare`` runs the same grid for several controllers
 (one subfolder each) and adds compare.png and compare.json (per terrain) and
 scorecard.json and scorecard.md (:mod:`sweeps.scorecard`); on ``--model mjx``
-its grid defaults to 8 push directions x 2 phases x 3 impulses (48 walks per
-controller, :data:`sweeps.presets.COMPARE_DEFAULTS`).
+its grid defaults to 8 push directions x 3 impulses at mid-step, twice (two draws of
+sensor noise: 48 walks per controller, :data:`sweeps.presets.COMPARE_DEFAULTS`), and on a
+CPU it runs one sweep per core at once (``--jobs``, :mod:`sweeps.parallel`).
 Several hosts: ``--distributed`` (or ``--coordinator``) starts
 ``jax.distributed`` first; see the README. A bad argument exits with
 status 2 and one line on stderr.
@@ -152,6 +153,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true", help="keep finished chunks of the same sweep in --out (always done; kept for old scripts)")
     p.add_argument("--force", action="store_true", help="overwrite a different sweep in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--jobs", type=_number("--jobs", int, 0, True),
+                   help="sweeps run at once, one process each (default: one per CPU core on a CPU, else 1)")
     p.add_argument("--distributed", action="store_true",
                    help="call jax.distributed.initialize() first (cluster auto-detection or JAX_COORDINATOR_ADDRESS)")
     p.add_argument("--coordinator", help="jax.distributed coordinator HOST:PORT (with --num-processes, --process-id)")
@@ -286,9 +289,10 @@ def _sweep(args, parser) -> int:
     import jax
 
     from sweeps import report
-    from sweeps.models import ModelUnavailable, check
+    from sweeps.models import ModelUnavailable, check, get_model
     from jaxlp.files import save_text_atomic, strict_json
-    from sweeps.runner import SweepConflict, run_sweep
+    from sweeps.parallel import SweepJob, default_workers, run_sweeps
+    from sweeps.runner import SweepConflict
 
     try:
         runnable = []
@@ -303,17 +307,27 @@ def _sweep(args, parser) -> int:
     except (GridError, ValueError, RuntimeError) as e:
         parser.error(str(e))
     main_process = jax.process_index() == 0
-    runs = []
-    try:
-        for out, cfg, note in runnable:
-            if note and main_process:
+    workers = args.jobs or default_workers(len(runnable))
+    if workers > 1 and jax.process_count() > 1:
+        parser.error(f"--jobs {workers} runs sweeps in local processes; with jax.distributed give --jobs 1")
+
+    def done(i, run):
+        out = runnable[i][0]
+        if run.results is not None:
+            summary = report.write_outputs(out, run)
+            print(_describe(summary, out), flush=True)
+
+    if main_process:
+        for out, _, note in runnable:
+            if note:
                 print(f"{out}: {note}", flush=True)
-            run = run_sweep(cfg, out, resume=args.resume, force=args.force, progress=not args.no_progress,
-                            desc=f"{cfg.model}/{cfg.controller}")
-            runs.append(run)
-            if run.results is not None:
-                summary = report.write_outputs(out, run)
-                print(_describe(summary, out), flush=True)
+        if workers > 1:
+            print(f"{len(runnable)} sweeps, {workers} at once (one process each; --jobs)", flush=True)
+    try:
+        runs = run_sweeps([SweepJob(cfg, out, f"{cfg.model}/{cfg.controller}") for out, cfg, _ in runnable],
+                          workers=workers, resume=args.resume, force=args.force, progress=not args.no_progress,
+                          on_done=done, cost=[get_model(c.model).ticks_per_rollout(c) * c.n_rollouts
+                                              for _, c, _ in runnable])
     except (SweepConflict, GridError) as e:
         parser.error(str(e))
     if args.command == "compare" and main_process:

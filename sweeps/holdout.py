@@ -3,8 +3,9 @@
 A tuning record (``tuned.json`` of ``coman-sweep tune``, either plant) holds
 the controller overrides before and after tuning. Each (set, direction) pair
 is one ordinary sweep of :func:`sweeps.runner.run_sweep` into its own folder
-(``OUT/holdout/<set>/<direction>/``), so it is chunked, sharded, resumed
-after a kill and refused over another sweep like any ``coman-sweep map``.
+(``OUT/holdout/<set>/<direction>/``; several at once in worker processes on a
+CPU, :mod:`sweeps.parallel`), so it is chunked, sharded, resumed after a kill
+and refused over another sweep like any ``coman-sweep map``.
 The grid is the model's default (:attr:`sweeps.models.Model.holdout_grid`:
 fresh noise seed, sensors like the training ones), overridable. Constants
 tuned on one model reach the other through the settings they share
@@ -183,7 +184,7 @@ def load_runs(path) -> dict:
 
 
 def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: bool = True, resume: bool = True,
-                force: bool = False, **grid) -> dict:
+                force: bool = False, workers: int | None = None, **grid) -> dict:
     """The held-out sweeps of the seed's and the tuned overrides of ``record``; write the outputs.
 
     Writes to ``out``: ``holdout/<set>/<direction>/`` (each an ordinary sweep folder), ``holdout.json``
@@ -196,6 +197,7 @@ def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: 
         progress: progress bars on stderr.
         resume: keep finished chunks of the same sweeps (a re-run redoes nothing finished).
         force: overwrite folders that hold other sweeps.
+        workers: sweeps at once, one process each (default :func:`sweeps.parallel.default_workers`).
         **grid: overrides of the model's held-out grid (``SweepConfig`` fields and ``directions``).
 
     Returns:
@@ -205,21 +207,20 @@ def run_holdout(record: dict, out: Path, *, model: str | None = None, progress: 
         GridError: a bad grid or override. SweepConflict: a folder holding another sweep, without ``force``.
     """
     from jaxlp.files import save_text_atomic, strict_json
-    from sweeps.runner import run_sweep
+    from sweeps.parallel import SweepJob, default_workers, run_sweeps
 
     out = Path(out)
     model = model or record["plant"]
     sets = {name: record[f"overrides_{which}"] for name, which in zip(SETS, ("before", "after"))}
     configs = {name: holdout_configs(record, model, ov, **grid) for name, ov in sets.items()}
-    runs = {}
-    for name, cfgs in configs.items():
-        runs[name] = []
-        for c in cfgs:
-            folder = out / "holdout" / name / c.direction
-            run = run_sweep(c, folder, resume=resume, force=force, progress=progress,
-                            desc=f"held-out {model} {name}/{c.direction}")
-            report.write_outputs(folder, run)
-            runs[name].append(run)
+    tags = [(name, c) for name, cfgs in configs.items() for c in cfgs]
+    jobs = [SweepJob(c, out / "holdout" / name / c.direction, f"held-out {model} {name}/{c.direction}")
+            for name, c in tags]
+    done = run_sweeps(jobs, workers=workers or default_workers(len(jobs)), resume=resume, force=force,
+                      progress=progress, on_done=lambda i, run: report.write_outputs(jobs[i].out_dir, run))
+    runs = {name: [] for name in configs}
+    for (name, _), run in zip(tags, done):
+        runs[name].append(run)
     table = compare(runs)
     for name in SETS:
         table[name]["wall_s"] = float(sum(r.timing["wall_s"] for r in runs[name]))

@@ -66,6 +66,9 @@ class SweepInterrupted(Exception):
                          "rerun the same command to finish (finished chunks are kept)")
         self.out_dir, self.done, self.total = out_dir, done, total
 
+    def __reduce__(self):  # back from a worker process (sweeps.parallel)
+        return SweepInterrupted, (self.out_dir, self.done, self.total)
+
 
 class SweepRun(NamedTuple):
     """A finished sweep.
@@ -249,8 +252,9 @@ def _barrier(name: str) -> None:
 
 
 def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force: bool = False,
-              progress: bool = True, desc: str | None = None) -> SweepRun:
-    """Run (or finish) a sweep into ``out_dir``; return its per-rollout results and timing.
+              progress: bool = True, desc: str | None = None, position: int | None = None) -> SweepRun:
+    """Run (or finish) a sweep into ``out_dir``; return its per-rollout results and timing (``position``: the
+    progress bar's row, when several sweeps show theirs at once).
 
     Raises:
         GridError: a bad configuration. ModelUnavailable: a model that cannot run yet.
@@ -287,7 +291,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
         float_dtype = np.float64 if config.x64 else np.float32
         keys = rollout_keys(config.seed, inputs.index)
         fn, sharding = _chunk_fn(config.compiled_part(), model.rollout, devices)
-        bar = _progress(n, n - sum(rows(i) for i in todo), progress and writer, desc)
+        bar = _progress(n, n - sum(rows(i) for i in todo), progress and writer, desc, position)
         try:
             for k, i in enumerate(todo):
                 lo, hi = i * chunk, i * chunk + rows(i)
@@ -334,12 +338,12 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
     return SweepRun(config, results, timing)
 
 
-def _progress(total: int, initial: int, enabled: bool, desc: str | None):
+def _progress(total: int, initial: int, enabled: bool, desc: str | None, position: int | None = None):
     """A tqdm bar on stderr: rollouts done, rollouts per second, time left."""
     from tqdm import tqdm
 
     return tqdm(total=total, initial=initial, unit="rollout", file=sys.stderr, disable=not enabled,
-                desc=desc or "sweep", dynamic_ncols=True, mininterval=0.5, smoothing=0.1)
+                desc=desc or "sweep", dynamic_ncols=True, mininterval=0.5, smoothing=0.1, position=position)
 
 
 def _assemble(inputs, chunks: list, n: int, config: SweepConfig | None = None) -> dict:

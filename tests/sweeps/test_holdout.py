@@ -116,11 +116,11 @@ def test_held_out_mjx_sweeps_of_a_record_and_their_resume(tmp_path):
     record = dict(RECORD, overrides_before=dict(deadzone=[0.004, 0.004, 0.04, 0.04], zeta=0.1, window=30),
                   overrides_after=dict(deadzone=[1.0, 1.0, 10.0, 10.0], zeta=0.1, window=30))
     grid = dict(directions=("backward",), phases=(0.375,), impulses_ns=(0.0, 6.0), chunk=2)
-    out = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, **grid)
+    out = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, workers=1, **grid)
     seed, tuned = (out["runs"][n][0].results for n in holdout.SETS)
     assert not seed["fell"].any() and tuned["fell"][1] and not tuned["fell"][0]
     table = json.loads((tmp_path / "holdout.json").read_text())
     assert table["model"] == "mjx" and table["seed"]["recovery_rate"] == 1.0
     assert (tmp_path / "holdout.png").stat().st_size > 1000
-    again = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, **grid)
+    again = holdout.run_holdout(record, tmp_path, model="mjx", progress=False, workers=1, **grid)
     assert all(r.timing["chunks_run"] == 0 for lst in again["runs"].values() for r in lst)

@@ -70,7 +70,7 @@ def test_holdout_sweeps_recover_small_pushes_and_not_huge_ones(tiny_run, tmp_pat
     """The held-out 3LP sweeps of the record run through the sweep runner: outputs, resume, the load round trip."""
     _, record = tiny_run
     grid = dict(directions=("forward",), phases=(0.25, 0.75), impulses_ns=(0.0, 2.0, 40.0), n_steps=6, chunk=4)
-    out = holdout.run_holdout(record, tmp_path, progress=False, **grid)
+    out = holdout.run_holdout(record, tmp_path, progress=False, workers=1, **grid)
     runs, table = out["runs"], out["table"]
     for name in holdout.SETS:
         res = runs[name][0].results
@@ -86,7 +86,7 @@ def test_holdout_sweeps_recover_small_pushes_and_not_huge_ones(tiny_run, tmp_pat
     back = holdout.load_runs(tmp_path / "holdout.npz")["tuned"][0]
     assert back.config == runs["tuned"][0].config
     np.testing.assert_array_equal(back.results["fell"], runs["tuned"][0].results["fell"])
-    again = holdout.run_holdout(record, tmp_path, progress=False, **grid)  # resumes every chunk
+    again = holdout.run_holdout(record, tmp_path, progress=False, workers=1, **grid)  # resumes every chunk
     assert all(r.timing["chunks_run"] == 0 for lst in again["runs"].values() for r in lst)
 
 
