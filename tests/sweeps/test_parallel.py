@@ -1,4 +1,8 @@
-"""sweeps.parallel: sweeps in worker processes give the serial results in job order and carry errors back."""
+"""sweeps.parallel: sweeps in worker processes give the serial results in job order and carry errors back.
+
+The comparison with the serial results compiles the sweep in this process and in two workers (about 45 s of the
+suite's 2 x 15 minutes): it is slow; the default suite's end-to-end compare of two controllers
+(tests/sweeps/test_sweeps.py) runs in two workers on a 2-core machine."""
 
 import dataclasses
 import pickle
@@ -24,6 +28,7 @@ def serial(tmp_path_factory):
     return root, run_sweeps(_jobs(root), workers=1, progress=False)
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_serial_results_in_job_order(tmp_path, serial):
     seen = []
     par = run_sweeps(_jobs(tmp_path), workers=2, progress=False, on_done=lambda i, r: seen.append(i))
@@ -36,12 +41,15 @@ def test_two_workers_give_the_serial_results_in_job_order(tmp_path, serial):
     assert np.all(a != b)  # the two jobs differ, so the order check above is not vacuous
 
 
-def test_a_worker_error_reaches_the_caller(serial):
-    root = serial[0]
-    a, b = _jobs(root)
-    swapped = [a._replace(out_dir=b.out_dir), b._replace(out_dir=a.out_dir)]  # each folder holds the other sweep
+def test_a_worker_error_reaches_the_caller(tmp_path):
+    from sweeps.runner import prepare_out_dir
+
+    a, b = _jobs(tmp_path)
+    for job, other in ((a, b), (b, a)):  # each folder holds the other sweep's finished work
+        prepare_out_dir(job.out_dir, other.config, force=False)
+        (job.out_dir / "results.npz").write_bytes(b"")
     with pytest.raises(SweepConflict, match="different sweep"):
-        run_sweeps(swapped, workers=2, progress=False)
+        run_sweeps([a, b], workers=2, progress=False)
 
 
 def test_workers_must_be_positive_and_default_to_the_cores_on_cpu():

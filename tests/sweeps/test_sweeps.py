@@ -235,6 +235,9 @@ def test_compare_time_projection_recovers_late_pushes_dlqr_does_not(tmp_path):
     r = _sweep(["compare", "--controllers", "time-projection,dlqr", "--phases", "0.5,0.625,0.75,0.875",
                 "--impulses", "0:8:5", "--n-steps", "6", "--no-progress", "--out", str(tmp_path)])
     assert r.returncode == 0, r.stderr
+    from sweeps.parallel import cpu_cores
+
+    assert ("2 sweeps, 2 at once" in r.stdout) == (cpu_cores() >= 2)  # one worker process per controller
     table = json.loads((tmp_path / "compare.json").read_text())
     assert table["controllers"] == ["time-projection", "dlqr"] and len(table["per_phase"]) == 4
     for row in table["per_phase"]:
