@@ -15,8 +15,8 @@ to ``--out``. With no grid option (or with ``--preset``) it runs a preset,
 one subfolder per run. ``compare`` runs the same grid for several controllers
 (one subfolder each) and adds compare.png and compare.json (per terrain) and
 scorecard.json and scorecard.md (:mod:`sweeps.scorecard`); on ``--model mjx``
-its grid defaults to 8 push directions x 3 impulses at mid-step, twice (two draws of
-sensor noise: 48 walks per controller, :data:`sweeps.presets.COMPARE_DEFAULTS`), and on a
+its grid defaults to 8 push directions x 2 impulses at mid-step, twice (two draws of
+sensor noise: 32 walks of 6 steps per controller, :data:`sweeps.presets.COMPARE_DEFAULTS`), and on a
 CPU it runs one sweep per core at once (``--jobs``, :mod:`sweeps.parallel`).
 Several hosts: ``--distributed`` (or ``--coordinator``) starts
 ``jax.distributed`` first; see the README. A bad argument exits with

@@ -60,10 +60,11 @@ PRESETS: dict[str, tuple[PresetRun, ...]] = {
 }
 
 # What ``coman-sweep compare --model mjx`` runs for each controller unless an option says otherwise: 8 push
-# directions x 3 impulses at mid-step of walking step 1, twice (two draws of sensor noise: the scorecard's
-# bootstrap intervals) = 48 walks of 8 steps at 0.1 m/s with COMAN's nominal sensor noise, in one chunk. Sized so
-# that every walking controller runs in under 15 minutes on 2 CPU cores (two sweeps at once, sweeps.parallel).
+# directions x 2 impulses (3 and 6 N s) at mid-step of walking step 1, twice (two draws of sensor noise: the
+# scorecard's bootstrap intervals) = 32 walks of 6 steps at 0.1 m/s with COMAN's nominal sensor noise, in one
+# chunk. Sized so that every walking controller runs in under 15 minutes on 2 CPU cores (two sweeps at once,
+# sweeps.parallel): compilation is about a third of it.
 COMPARE_DEFAULTS: dict[str, dict] = {
-    "mjx": dict(directions=parse_directions("8"), phases=(0.5,), impulses_ns=(2.0, 4.0, 6.0), repeats=2,
-                n_steps=8, push_step=1, speed_mps=0.1, sensor_noise_scale=1.0, chunk=48),
+    "mjx": dict(directions=parse_directions("8"), phases=(0.5,), impulses_ns=(3.0, 6.0), repeats=2,
+                n_steps=6, push_step=1, speed_mps=0.1, sensor_noise_scale=1.0, chunk=32),
 }

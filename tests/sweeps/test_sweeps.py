@@ -287,17 +287,17 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
     # a grid option without --preset: one map into --out with the base defaults
     (["map", "--phases", "4"], [("", "3lp", 4 * 41, 256)]),
     (["compare", "--model", "mjx", "--phases", "2", "--impulses", "0,1"],  # 8 directions by default
-     [(c, "mjx", 2 * 8 * 4, 48) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc",
+     [(c, "mjx", 2 * 8 * 4, 32) for c in ("time-projection", "open-loop", "no-deadzone", "dlqr", "footstep-mpc",
                                           "straight-leg", "straight-leg-no-toe-off", "bent-knee",
                                           "straight-leg-step-adjust")]),
-    (["compare", "--model", "mjx", "--controllers", "dlqr"], [("dlqr", "mjx", 2 * 8 * 1 * 3, 48)]),
+    (["compare", "--model", "mjx", "--controllers", "dlqr"], [("dlqr", "mjx", 2 * 8 * 1 * 2, 32)]),
     (["compare", "--model", "mjx", "--controllers", "dlqr", "--direction", "45", "--chunk", "8", "--repeats", "1"],
-     [("dlqr", "mjx", 1 * 3, 8)]),
+     [("dlqr", "mjx", 1 * 2, 8)]),
     (["compare", "--model", "mjx", "--controllers", "dlqr", "--directions", "left,right", "--impulses", "1"],
-     [("dlqr", "mjx", 2 * 2 * 1, 48)]),
+     [("dlqr", "mjx", 2 * 2 * 1, 32)]),
     (["map", "--model", "mjx", "--directions", "4", "--phases", "2"], [("", "mjx", 4 * 2 * 41, 256)]),
     (["compare", "--model", "mjx", "--controllers", "footstep-mpc", "--axis", "actuator=ideal,sea"],
-     [("footstep-mpc", "mjx", 2 * 2 * 8 * 1 * 3, 48)]),
+     [("footstep-mpc", "mjx", 2 * 2 * 8 * 1 * 2, 32)]),
     (["map", "--model", "mjx", "--controller", "open-loop", "--set", "hip_attack=0.5", "--phases", "2"],
      [("", "mjx", 2 * 41, 256)]),
     # scenario axes: batched ones multiply the grid; each terrain is its own run (a scene)
@@ -305,7 +305,7 @@ def test_two_processes_under_jax_distributed_match_one(reference, tmp_path):
      [("", "mjx", 2 * 41 * 6, 256)]),
     (["compare", "--model", "mjx", "--controllers", "time-projection,dlqr", "--phases", "2", "--impulses", "0,1",
       "--axis", "terrain=flat,rough:2", "--delay-ms", "10"],
-     [(f"terrain-{t}/{c}", "mjx", 2 * 8 * 4, 48) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
+     [(f"terrain-{t}/{c}", "mjx", 2 * 8 * 4, 32) for t in ("flat", "rough-2") for c in ("time-projection", "dlqr")]),
 ])
 def test_presets_and_overrides(argv, expected, tmp_path):
     from sweeps.cli import build_parser
