@@ -31,6 +31,7 @@ import numpy as np
 
 from jaxlp import control
 from jaxlp.controllers import CONTROLLERS as JAXLP_CONTROLLERS
+from jaxlp.host import host_eval
 from jaxlp.presets import get_params
 from jaxlp.simulate import Push, SimSpec, make_plan, make_sensing, simulate
 from mjx_coman.controllers.base import Setting
@@ -137,10 +138,8 @@ def _randomized(config: SweepConfig) -> bool:
 @functools.lru_cache(maxsize=16)
 def nominal_plan(config: SweepConfig):
     """The plan of the nominal robot (concrete arrays; cached per configuration and float width)."""
-    with jax.ensure_compile_time_eval():  # concrete even when first asked for while tracing
-        params = get_params(config.robot)
-        plan = jax.jit(lambda p: make_plan(p, _spec(config), config.speed_mps, weights=_weights(p, config)))(params)
-    return jax.tree_util.tree_map(np.asarray, plan)  # host constants, valid on every device
+    return host_eval(lambda p: make_plan(p, _spec(config), config.speed_mps, weights=_weights(p, config)),
+                     get_params(config.robot))  # host constants, valid on every device
 
 
 def _robot_and_plan(config: SweepConfig, key_data):

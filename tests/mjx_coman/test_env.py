@@ -1,6 +1,7 @@
 """The environment: standing, pushes, velocity limit, batches, validation."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -61,29 +62,36 @@ def test_torso_pull_leans_the_robot_forward(env_params):
     assert res["mean_effective_stiffness_nm_per_rad"] == pytest.approx(res["series_prediction_nm_per_rad"], rel=0.3)
 
 
-def _standing_batch(env_params, reset_state, standing_q, acts, ticks):
-    """Roll out one standing robot per actuator parameter set, in one vmap."""
-    n = len(acts)
+BATCH_ROWS, BATCH_TICKS = 16, 100  # the shape of the one vmapped program the batch tests share
+
+
+@functools.partial(jax.jit, static_argnames="ticks")
+def _batch_run(params, states, cmd, ticks):
+    """One robot per row of ``params`` and ``states``, all under ``cmd`` for ``ticks`` ticks: the final states and
+    each tick's link torques (the last substep's ``ctrl``) and velocities."""
+    def one(pp, ss):
+        def tick(c, _):
+            c = env.step(pp, c, cmd)
+            return c, (c.data.ctrl, c.data.qvel)
+        return jax.lax.scan(tick, ss, None, length=ticks)
+    return jax.vmap(one, in_axes=(env.batch_axes(params), 0))(params, states)
+
+
+def _batch(env_params, reset_state, acts, cmd, ticks=BATCH_TICKS):
+    """Roll out one robot per actuator parameter set (padded to ``BATCH_ROWS`` with the last) in one vmap."""
+    n = BATCH_ROWS if ticks == BATCH_TICKS and len(acts) < BATCH_ROWS else len(acts)
+    acts = list(acts) + [acts[-1]] * (n - len(acts))
     params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(lambda *x: jnp.stack(x), *acts),
                                  sensor=jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), env_params.sensor))
     states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), reset_state)
-    cmd = env.make_command(standing_q)
-
-    @jax.jit
-    def run(p, s):
-        def one(pp, ss):
-            return jax.lax.scan(lambda c, _: (env.step(pp, c, cmd), None), ss, None, length=ticks)[0]
-        return jax.vmap(one, in_axes=(env.batch_axes(p), 0))(p, s)
-
-    return run(params, states)
+    return _batch_run(params, states, cmd, ticks)
 
 
 @pytest.fixture(scope="module")
 def batch16(env_params, reset_state, standing_q):
-    n = 16
-    springs = np.linspace(150.0, 600.0, n)
+    springs = np.linspace(150.0, 600.0, BATCH_ROWS)
     acts = [make_actuator_params(spring_stiffness_nm_per_rad=k, delay_s=0.002 * (i % 12)) for i, k in enumerate(springs)]
-    return springs, _standing_batch(env_params, reset_state, standing_q, acts, ticks=100)
+    return springs, _batch(env_params, reset_state, acts, env.make_command(standing_q))[0]
 
 
 def test_batch_of_16_different_robots(batch16, reset_state):
@@ -102,7 +110,7 @@ def test_batch_of_256_standing_rollouts_two_seconds(env_params, reset_state, sta
     key = jax.random.PRNGKey(3)
     springs = np.asarray(jax.random.uniform(key, (n,), minval=250.0, maxval=550.0))
     acts = [make_actuator_params(spring_stiffness_nm_per_rad=float(k)) for k in springs]
-    final = _standing_batch(env_params, reset_state, standing_q, acts, ticks)
+    final = _batch(env_params, reset_state, acts, env.make_command(standing_q), ticks)[0]
     drift = np.linalg.norm(np.asarray(final.data.qpos[:, :2] - reset_state.data.qpos[:2]), axis=1)
     assert np.all(drift < 0.02)
 
@@ -138,27 +146,16 @@ def test_torque_commands_reach_the_links_after_the_delay(env_params, reset_state
     """Ideal torque loop: the link gets the commanded torque (within eq. 20's limits) once it is through the delay."""
     plants = [make_actuator_params(torque_loop="ideal", delay_s=0.0), make_actuator_params(torque_loop="ideal", delay_s=0.004),
               make_actuator_params(torque_loop="sea", delay_s=0.0)]
-    n = len(plants)
-    params = dataclasses.replace(env_params, actuator=jax.tree_util.tree_map(lambda *x: jnp.stack(x), *plants),
-                                 sensor=jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), env_params.sensor))
-    states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), reset_state)
     tau = jnp.full(NU, 2.0).at[KNEE].set(50.0)  # the knee asks for more than the motor can give
     cmd = env.make_command(tau, mode="torque")
-
-    @jax.jit
-    def run(p, s):
-        def one(pp, ss):
-            return jax.lax.scan(lambda c, _: (env.step(pp, c, cmd),) * 2, ss, None, length=5)[1]
-        return jax.vmap(one, in_axes=(env.batch_axes(p), 0))(p, s)
-
-    traj = run(params, states)
-    ctrl = np.asarray(traj.data.ctrl)  # (plant, tick, NU): the last substep's link torques
+    ctrl, qvel = (np.asarray(x)[:len(plants), :5] for x in _batch(env_params, reset_state, plants, cmd)[1])
+    # ctrl: (plant, tick, NU), the last substep's link torques over the first 5 ticks
     others = np.arange(NU) != KNEE
     np.testing.assert_allclose(ctrl[0, :, others], 2.0, rtol=1e-6)
     # clipped at the speed-dependent limit: the light shank speeds up to the motor's no-load speed, no further
     assert np.all((ctrl[0, :, KNEE] > 0) & (ctrl[0, :, KNEE] <= 15.0 / 0.45 + 1e-4))
     assert ctrl[0, -1, KNEE] < 0.5 * 15.0 / 0.45
-    assert np.max(np.abs(np.asarray(traj.data.qvel)[0, :, 6 + KNEE])) < 15.0 / (5.42 + 0.45 * 1.66) + 0.05
+    assert np.max(np.abs(qvel[0, :, 6 + KNEE])) < 15.0 / (5.42 + 0.45 * 1.66) + 0.05
     # 2 ticks of delay: the boards hold the reset position until the first torque command arrives
     assert not np.allclose(ctrl[1, :2, others], 2.0, atol=0.1)
     np.testing.assert_allclose(ctrl[1, 2:, others], 2.0, rtol=1e-6)

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxlp import control, filters, gait as gait_mod, projection
+from jaxlp.host import host_eval
 from mjx_coman.controllers.base import Setting
 from mjx_coman.controllers.time_projection import estimation as est
 from mjx_coman.controllers.time_projection.open_loop import FIXED_LIFT_M, ROLL_AMP_RAD, crouched_pelvis_height_m
@@ -229,7 +230,6 @@ def _design_tables(robot: str, T: float, n: int, dt: float, step_width_m: float,
 
     ws = np.asarray(lqr_weight_scale)
 
-    @jax.jit
     def build(p):
         g0 = gait_mod.periodic_gait(p, T, 0.0, step_width_m)
         g1 = gait_mod.periodic_gait(p, T, 0.1, step_width_m)
@@ -243,8 +243,8 @@ def _design_tables(robot: str, T: float, n: int, dt: float, step_width_m: float,
         ctrl = control.constrained_dlqr(p, T, weights)
         return nom0, per_mps, projection.gain_table(p, ctrl, T, n).footstep
 
-    with jax.ensure_compile_time_eval(), jax.enable_x64(True):
-        return tuple(np.asarray(x) for x in build(get_params(robot)))
+    with jax.enable_x64(True):  # host_eval runs in this float width
+        return host_eval(build, get_params(robot))
 
 
 def make_config(
