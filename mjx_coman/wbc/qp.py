@@ -132,6 +132,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         raise ValueError("upper_acc is given but fixed_upper_body=False: the upper body is free")
     if toe_off is not None and contact_slack_weight is None:
         raise ValueError("toe_off needs contact_slack_weight: a toe-off foot's free pitch is a zero stance row")
+    if n_faces < 4:  # before any work (friction_rows checks it too)
+        raise ValueError(f"n_faces must be >= 4, got {n_faces}")
     dt = plant.mass.dtype
     free = free_joints(nv, fixed_upper_body)
     n_q = len(free)

@@ -183,11 +183,12 @@ def solve_qp(qp: QP, *, float64: bool = False, max_iter: int | None = None, retr
     sdt = solve_dtype(dtype, float64)
     tols = TOLERANCES["float64" if sdt == jnp.float64 else "float32"]
     n_iter = tols["max_iter"] if max_iter is None else max_iter
+    if retry_iter is not None and (isinstance(retry_iter, bool) or not isinstance(retry_iter, int)
+                                   or not 1 <= retry_iter < n_iter):
+        raise ValueError(f"retry_iter={retry_iter!r} must be a whole number in [1, {n_iter})")
     x, info = _solve_once(qp, sdt, tols, n_iter)
     if retry_iter is None:
         return x, info
-    if isinstance(retry_iter, bool) or not isinstance(retry_iter, int) or not 1 <= retry_iter < n_iter:
-        raise ValueError(f"retry_iter={retry_iter!r} must be a whole number in [1, {n_iter})")
     x2, info2 = _solve_once(qp, sdt, tols, retry_iter)
     use_first = info.ok | ~info2.ok
     pick = lambda a, b: jnp.where(use_first, a, b)  # noqa: E731

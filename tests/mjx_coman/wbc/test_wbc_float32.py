@@ -66,9 +66,9 @@ def test_a_retry_at_fewer_iterations_rescues_a_late_float32_breakdown():
     way: the full solve where it succeeds, else the 12-iteration one, which agrees with proxsuite in float64."""
     data = np.load(Path(__file__).parent / "data" / "late_breakdown_qp.npz")
     qp = wbc.QP(**{k: jnp.asarray(data[k]) for k in wbc.QP._fields})
-    full_x, full = wbc.solve_qp(qp, max_iter=20)
-    short_x, short = wbc.solve_qp(qp, max_iter=12)
-    x, info = wbc.solve_qp(qp, max_iter=20, retry_iter=12)
+    # one compilation for the three solves (eager, each small op would compile on its own)
+    (full_x, full), (short_x, short), (x, info) = jax.jit(lambda qp: (
+        wbc.solve_qp(qp, max_iter=20), wbc.solve_qp(qp, max_iter=12), wbc.solve_qp(qp, max_iter=20, retry_iter=12)))(qp)
     assert bool(short.ok) and bool(info.ok)
     np.testing.assert_array_equal(np.asarray(x), np.asarray(full_x if bool(full.ok) else short_x))
     xr = qpsolvers.solve_qp(**wbc.export_qp(qp), solver="proxqp", eps_abs=1e-10, eps_rel=0.0)
