@@ -34,69 +34,10 @@ import numpy as np
 
 from mjx_coman import env as env_mod
 from mjx_coman import ground_truth as gt
-from mjx_coman.actuators import JOINT_INDEX, default_kp_v_per_rad, make_actuator_params
 from mjx_coman.controllers.base import Joystick, Observation, Telemetry, joystick as make_joystick
-
-WALKING_ANKLE_ROLL_KP_V_PER_RAD = 100.0
-
-
-def walking_env_params(ankle_roll_kp_v_per_rad: float = WALKING_ANKLE_ROLL_KP_V_PER_RAD,
-                       **actuator_kwargs) -> env_mod.EnvParams:
-    """Environment parameters for walking: the seed's gains except a stiffer ankle roll loop.
-
-    The seed sets the ankle roll gain "to a small value" (10 V/rad, eq. 25) so
-    the foot settles on the floor. On the simulated robot that ankle (22 N m/rad
-    through the motor) leaves the single-support body free to topple sideways
-    over its soft ankle roll, and every in-place walk tried with it fell
-    sideways within 2.5 s; 100 V/rad (and 500) walked. Other gains follow
-    :func:`mjx_coman.actuators.default_kp_v_per_rad`.
-
-    Args:
-        ankle_roll_kp_v_per_rad: ankle roll position gain, V/rad (> 0).
-        **actuator_kwargs: passed to :func:`mjx_coman.actuators.make_actuator_params`
-            (``kp_v_per_rad`` there overrides the gains, ankle roll included).
-
-    Raises:
-        ValueError: a non-positive gain (and what ``make_actuator_params`` rejects).
-    """
-    if not (math.isfinite(ankle_roll_kp_v_per_rad) and ankle_roll_kp_v_per_rad > 0):
-        raise ValueError(f"ankle_roll_kp_v_per_rad={ankle_roll_kp_v_per_rad!r} must be finite and positive")
-    if "kp_v_per_rad" not in actuator_kwargs:
-        kp = default_kp_v_per_rad()
-        for side in "RL":
-            kp[JOINT_INDEX[side + "AnkLat"]] = ankle_roll_kp_v_per_rad
-        actuator_kwargs["kp_v_per_rad"] = kp
-    return env_mod.make_env_params(actuator=make_actuator_params(**actuator_kwargs))
-
-
-SEA_TORQUE_DELAY_S = 0.010  # motor-board link delay under the series-elastic torque loop (seed 001: 10 ms)
-
-
-def plant_env_params(plant: str = "position", **actuator_kwargs) -> env_mod.EnvParams:
-    """Environment parameters for a controller's plant (``Gait.plant``).
-
-    * ``"position"``: :func:`walking_env_params` (seed 000's position loops, 20 ms delay);
-    * ``"torque-ideal"``: torques reach the links at once and exactly, within the
-      motor's limits (seed 001's simulation); no transport delay;
-    * ``"torque-sea"``: the series-elastic torque loop at 10 Hz, critically damped,
-      behind a 10 ms transport delay.
-
-    Args:
-        **actuator_kwargs: override :func:`mjx_coman.actuators.make_actuator_params` values.
-
-    Raises:
-        ValueError: an unknown plant (naming the known ones) and bad actuator values.
-    """
-    from mjx_coman.controllers.base import PLANTS
-
-    if plant not in PLANTS:
-        raise ValueError(f"plant={plant!r} is not one of {', '.join(PLANTS)}")
-    if plant == "position":
-        return walking_env_params(**actuator_kwargs)
-    defaults = dict(torque_loop="ideal", delay_s=0.0) if plant == "torque-ideal" else dict(
-        torque_loop="sea", delay_s=SEA_TORQUE_DELAY_S)
-    return env_mod.make_env_params(actuator=make_actuator_params(**{**defaults, **actuator_kwargs}))
-
+from mjx_coman.plants import (SEA_TORQUE_DELAY_S, WALKING_ANKLE_ROLL_KP_V_PER_RAD,  # noqa: F401 (the walk's API)
+                              plant_env_params, walking_env_params)
+from mjx_coman.pushes import Push, make_push, no_push, push_force  # noqa: F401 (the walk's API)
 
 class WalkSpec(NamedTuple):
     """Static choices of a walk (hashable; changing one recompiles).
@@ -148,62 +89,6 @@ class RolloutState(NamedTuple):
     time_s: jax.Array
 
 
-class Push(NamedTuple):
-    """A push on the upper torso (arrays; vmappable).
-
-    Attributes:
-        start_s: start time from the walk's start, s.
-        duration_s: duration, s.
-        force_n: (3,) force in the world frame, N.
-    """
-
-    start_s: jax.Array
-    duration_s: jax.Array
-    force_n: jax.Array
-
-
-def no_push() -> Push:
-    """A zero push."""
-    return Push(jnp.zeros(()), jnp.zeros(()), jnp.zeros(3))
-
-
-def make_push(start_s, duration_s=0.1, force_n=None, *, impulse_ns=None, direction_rad=0.0) -> Push:
-    """A validated push, from a force vector or an impulse magnitude and heading.
-
-    Args:
-        start_s: start time, s (>= 0).
-        duration_s: duration, s (> 0).
-        force_n: (3,) world-frame force, N; or
-        impulse_ns: impulse magnitude ``|F| * duration``, N s (>= 0), applied
-            horizontally at ``direction_rad`` (0 forward +x, pi/2 left +y, pi backward).
-
-    Raises:
-        ValueError: a negative start, a non-positive duration, a negative
-            impulse, a force that is not 3 finite numbers, or both/neither of
-            ``force_n`` and ``impulse_ns``.
-    """
-    if (force_n is None) == (impulse_ns is None):
-        raise ValueError("give exactly one of force_n and impulse_ns")
-    s, dur = np.asarray(start_s, float), np.asarray(duration_s, float)
-    if not np.all(np.isfinite(s)) or np.any(s < 0):
-        raise ValueError(f"start_s={s.tolist()} must be finite and non-negative")
-    if not np.all(np.isfinite(dur)) or np.any(dur <= 0):
-        raise ValueError(f"duration_s={dur.tolist()} must be finite and positive")
-    if impulse_ns is not None:
-        imp = np.asarray(impulse_ns, float)
-        if not np.all(np.isfinite(imp)) or np.any(imp < 0):
-            raise ValueError(f"impulse_ns={imp.tolist()} must be finite and non-negative")
-        ang = np.asarray(direction_rad, float)
-        mag = imp / dur
-        force = np.stack([mag * np.cos(ang), mag * np.sin(ang), np.zeros_like(mag * ang)], axis=-1)
-    else:
-        force = np.asarray(force_n, float)
-        if force.shape[-1:] != (3,) or not np.all(np.isfinite(force)):
-            raise ValueError(f"force_n={force.tolist()} must be (3,) finite numbers")
-    f = jnp.result_type(float)
-    return Push(jnp.asarray(s, f), jnp.asarray(dur, f), jnp.asarray(force, f))
-
-
 class WalkResult(NamedTuple):
     """Outcome of one walk (ground truth).
 
@@ -250,12 +135,6 @@ class _Carry(NamedTuple):
     failed: jax.Array
     fall_time: jax.Array
     max_adj: jax.Array
-
-
-def _push_force(push: Push, t0, dt):
-    """Mean push force over the tick ``[t0, t0 + dt]`` (exact impulse)."""
-    overlap = jnp.clip(jnp.minimum(t0 + dt, push.start_s + push.duration_s) - jnp.maximum(t0, push.start_s), 0.0, dt)
-    return push.force_n * overlap / dt
 
 
 def _all_finite(tree) -> jax.Array:
@@ -378,7 +257,7 @@ def walk(controller, config, env_params: env_mod.EnvParams, push: Push, key: jax
         time = k.astype(f) * dt
         obs = Observation(c.env.readings, joystick, time, c.env.data if controller.privileged else None)
         cs, cmd, tel = step(config, c.ctrl, obs)
-        cmd = cmd._replace(torso_force_n=_push_force(push, time, dt).astype(f))
+        cmd = cmd._replace(torso_force_n=push_force(push, time, dt).astype(f))
         e = env_mod.step(env_params, c.env, cmd)
         finite = _all_finite((e.data.qpos, e.data.qvel, e.actuator.motor_angle_rad, cmd, tel._replace(extra=())))
         failed = jnp.zeros((), bool) if tel.ok is None else ~jnp.asarray(tel.ok, bool)

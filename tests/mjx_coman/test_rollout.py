@@ -82,24 +82,6 @@ def test_a_blow_up_is_a_recorded_fall_and_stays_finite(tp):
     assert np.all(r.log.time_s[: int(r.touchdowns)] <= r.fall_time_s)  # nothing logged after the fall
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(start_s=-1.0, force_n=[1.0, 0, 0]), "start_s"),
-    (dict(start_s=1.0, duration_s=0.0, force_n=[1.0, 0, 0]), "duration_s"),
-    (dict(start_s=1.0, impulse_ns=-2.0), "impulse_ns"),
-    (dict(start_s=1.0, force_n=[1.0, 0.0]), "force_n"),
-    (dict(start_s=1.0, force_n=[float("nan"), 0, 0]), "force_n"),
-    (dict(start_s=1.0), "exactly one"),
-])
-def test_make_push_rejects_bad_values(kwargs, name):
-    with pytest.raises(ValueError, match=name):
-        ro.make_push(**kwargs)
-
-
-def test_make_push_from_impulse():
-    p = ro.make_push(2.0, 0.1, impulse_ns=4.0, direction_rad=math.pi / 2)
-    np.testing.assert_allclose(p.force_n, [0.0, 40.0, 0.0], atol=1e-5)
-
-
 @pytest.mark.parametrize("kwargs, name", [(dict(seconds=0.0), "seconds"), (dict(seconds=float("inf")), "seconds")])
 def test_walk_spec_rejects_bad_values(kwargs, name):
     with pytest.raises(ValueError, match=name):
@@ -132,11 +114,6 @@ def test_the_rollout_refuses_another_control_period_and_a_joystick_beyond_the_co
 def test_ticks_round_up_to_whole_records():
     assert ro.n_ticks(ro.WalkSpec(seconds=1.0), 0.002) == 500
     assert ro.n_ticks(ro.WalkSpec(seconds=1.001), 0.002, ro.SaveAt(ro.pelvis_and_com, every=10)) == 510
-
-
-def test_walking_env_params_rejects_a_bad_gain():
-    with pytest.raises(ValueError, match="ankle_roll_kp"):
-        ro.walking_env_params(0.0)
 
 
 # --- long runs -------------------------------------------------------------------------------------
