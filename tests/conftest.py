@@ -19,6 +19,7 @@ from jaxlp.xla_flags import configure_cpu
 configure_cpu()
 
 CACHE_ENV = "JAX_COMPILATION_CACHE_DIR"
+MIN_TIME_ENV = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"
 
 
 def pytest_configure(config):
@@ -29,9 +30,13 @@ def pytest_configure(config):
     if not hasattr(config, "workerinput") and CACHE_ENV not in os.environ:
         os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="jax-test-cache-")
         config._jax_cache_owned = os.environ[CACHE_ENV]
+    # every program, however quick to compile: a subprocess or worker loads the few hundred small eager ops
+    # (tens of ms each to compile) that every process of the suite otherwise compiles again
+    os.environ.setdefault(MIN_TIME_ENV, "0")
     import jax
 
     jax.config.update("jax_compilation_cache_dir", os.environ[CACHE_ENV])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(os.environ[MIN_TIME_ENV]))
 
 
 def pytest_unconfigure(config):
