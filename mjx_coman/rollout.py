@@ -39,6 +39,7 @@ from mjx_coman.plants import (SEA_TORQUE_DELAY_S, WALKING_ANKLE_ROLL_KP_V_PER_RA
                               plant_env_params, walking_env_params)
 from mjx_coman.pushes import Push, make_push, no_push, push_force  # noqa: F401 (the walk's API)
 
+
 class WalkSpec(NamedTuple):
     """Static choices of a walk (hashable; changing one recompiles).
 

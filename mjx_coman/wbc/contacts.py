@@ -124,6 +124,12 @@ def contact_equalities(plant: Plant, contact_mask, toe_off=None):
     return rows_qdd, rows_f, rhs
 
 
+def check_n_faces(n_faces: int) -> None:
+    """Raise ``ValueError`` for a friction pyramid of fewer than 4 faces."""
+    if n_faces < 4:
+        raise ValueError(f"n_faces must be >= 4, got {n_faces}")
+
+
 def friction_rows(sole_rot, contact_mask, friction_coeff, min_normal_force_n, n_faces: int = 4, toe_off=None):
     """``(rows (p, 24), rhs (p,))`` of ``rows f <= rhs``: inscribed friction pyramids and unilateral force.
 
@@ -133,8 +139,7 @@ def friction_rows(sole_rot, contact_mask, friction_coeff, min_normal_force_n, n_
     and ``n . f >= f_min``. Rows are per foot, corner, face (then the normal row); units N. A lifted foot's
     rows, and a toe-off foot's heel rows, are zero with right-hand side :data:`MASKED_SLACK_N`.
     """
-    if n_faces < 4:
-        raise ValueError(f"n_faces must be >= 4, got {n_faces}")
+    check_n_faces(n_faces)
     phi = 2.0 * math.pi * jnp.arange(n_faces) / n_faces
     t1, t2, n = sole_rot[..., :, 0], sole_rot[..., :, 1], sole_rot[..., :, 2]  # (2, 3)
     mu = jnp.asarray(friction_coeff, sole_rot.dtype) * math.cos(math.pi / n_faces)

@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_coman.wbc.contacts import contact_equalities, corner_mask, force_share, friction_rows
+from mjx_coman.wbc.contacts import check_n_faces, contact_equalities, corner_mask, force_share, friction_rows
 from mjx_coman.wbc.plant import LEG_JOINTS, N_BASE, N_FORCES, Plant, check_plant
 from mjx_coman.wbc.tasks import Task
 
@@ -132,8 +132,7 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
         raise ValueError("upper_acc is given but fixed_upper_body=False: the upper body is free")
     if toe_off is not None and contact_slack_weight is None:
         raise ValueError("toe_off needs contact_slack_weight: a toe-off foot's free pitch is a zero stance row")
-    if n_faces < 4:  # before any work (friction_rows checks it too)
-        raise ValueError(f"n_faces must be >= 4, got {n_faces}")
+    check_n_faces(n_faces)  # before any work
     dt = plant.mass.dtype
     free = free_joints(nv, fixed_upper_body)
     n_q = len(free)

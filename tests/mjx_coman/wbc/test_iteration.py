@@ -118,7 +118,7 @@ def test_steps_are_qpaxs_up_to_rounding_and_the_lowest_measure_iterate_is_return
     factorization changes float64 steps only by rounding)."""
     with jax.enable_x64(True):
         qp = _load("straight_leg_breakdown_qp.npz", np.float64)
-        for k in (1, 3):  # qpax compiles once per max_iter: 1..3
+        for k in (1, 3, 6):
             x, _, z, y, conv, n = iteration.solve(*qp, 0.0, k)
             assert int(n) == k and int(conv) == 0
             cands = []
