@@ -26,6 +26,7 @@ import numpy as np
 from mujoco import mjx
 
 from mjx_coman import load_model
+from mjx_coman.engines import MJX, Engine, make_engine
 from mjx_coman.actuators import (
     MODE_POSITION,
     MODE_TORQUE,
@@ -54,7 +55,7 @@ MID_FOOT_AHEAD_M = 0.03  # sole centre ahead of the ankle axis: (0.13 - 0.07) / 
 @functools.partial(
     jax.tree_util.register_dataclass,
     data_fields=["model", "actuator", "sensor"],
-    meta_fields=["n_substeps"],
+    meta_fields=["n_substeps", "engine"],
 )
 @dataclasses.dataclass(frozen=True)
 class EnvParams:
@@ -65,12 +66,14 @@ class EnvParams:
         actuator: motor, spring, position-loop and delay constants.
         sensor: sensor constants.
         n_substeps: physics steps per control tick (static).
+        engine: what steps the physics (static; :mod:`mjx_coman.engines`, :func:`use_engine`).
     """
 
     model: mjx.Model
     actuator: ActuatorParams
     sensor: SensorParams
     n_substeps: int
+    engine: Engine = MJX
 
     @property
     def timestep_s(self) -> jax.Array:
@@ -177,7 +180,33 @@ def batch_axes(params: EnvParams, model_fields: tuple[str, ...] = ()) -> EnvPara
         model_axes = model_axes.replace(**{f: 0 for f in model_fields})
     zeros = functools.partial(jax.tree_util.tree_map, lambda _: 0)
     return EnvParams(model=model_axes, actuator=zeros(params.actuator), sensor=zeros(params.sensor),
-                     n_substeps=params.n_substeps)
+                     n_substeps=params.n_substeps, engine=params.engine)
+
+
+def use_engine(params: EnvParams, engine: str = "mjx", *, mj_model: mujoco.MjModel | None = None,
+               n_threads: int | None = None) -> EnvParams:
+    """``params`` on the physics engine ``engine`` (:mod:`mjx_coman.engines`: ``mjx`` or ``native``).
+
+    Args:
+        mj_model: the compiled model ``params.model`` was made from (default: the packaged robot at the
+            params' timestep); a scene variant's params need their own.
+        n_threads: the native engine's threads (default: every core).
+
+    Raises:
+        ValueError: an unknown engine, bad ``n_threads``, or ``mj_model`` not the model of ``params``
+            (other sizes or timestep).
+    """
+    if mj_model is None:
+        mj_model = load_model()
+        mj_model.opt.timestep = float(np.asarray(params.model.opt.timestep))
+    bad = [f"{k} {getattr(mj_model, k)} != {getattr(params.model, k)}" for k in ("nq", "nv", "nbody", "ngeom", "nsite")
+           if getattr(mj_model, k) != getattr(params.model, k)]
+    step = float(np.asarray(params.model.opt.timestep))
+    if abs(mj_model.opt.timestep - step) > 1e-12:
+        bad.append(f"timestep {mj_model.opt.timestep} != {step}")
+    if bad:
+        raise ValueError(f"mj_model is not the model of these params ({'; '.join(bad)}): pass the scene's MjModel")
+    return dataclasses.replace(params, engine=make_engine(engine, mj_model, n_threads))
 
 
 def solver_iterations(params: EnvParams, iterations: int = 1) -> EnvParams:
@@ -305,7 +334,7 @@ def step(params: EnvParams, state: EnvState, command: Command) -> EnvState:
         act = jax.tree_util.tree_map(lambda a, b: jnp.where(ideal, a, b), held, motor)
         tau = jnp.where(ideal, tau_ideal, tau)
         data = data.replace(ctrl=tau, xfrc_applied=torso_wrench(data, command.torso_force_n))
-        return (mjx.step(params.model, data), act), None
+        return (params.engine.step(params.model, data), act), None
 
     (data, act), _ = jax.lax.scan(substep, (state.data, act), None, length=params.n_substeps)
     key, sub = jax.random.split(state.key)

@@ -297,7 +297,8 @@ def batched_env_params(base: EnvParams, scenarios: Sequence[Scenario],
         vals = [math.radians(getattr(s, name)) if getattr(s, name) is not None else None for s in scenarios]
         new = jnp.asarray([old[i] if v is None else v for i, v in enumerate(vals)], old.dtype)
         sen = dataclasses.replace(sen, **{field: new})
-    params = dataclasses.replace(base, model=model, actuator=act, sensor=sen)
+    engine = base.engine.for_model(models[0]) if scene else base.engine
+    params = dataclasses.replace(base, model=model, actuator=act, sensor=sen, engine=engine)
     return params, scenario_batch_axes(params)
 
 

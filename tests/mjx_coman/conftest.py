@@ -202,6 +202,14 @@ def shared_walks(walking_env):
     return _batch(_families(), WALK_ROWS, WALK_S, walking_env)
 
 
+@pytest.fixture(scope="session")
+def native_shared_walks(walking_env):
+    """The batch of ``shared_walks`` without its gradient rows, on the native engine (MuJoCo C)."""
+    from mjx_coman.env import use_engine
+
+    return _batch(_families(), WALK_ROWS, WALK_S, use_engine(walking_env, "native"), gradient=False)
+
+
 def family_of(name) -> str:
     """The first registered name of ``name``'s family (its representative)."""
     from mjx_coman import controllers
