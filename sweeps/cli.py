@@ -34,7 +34,7 @@ from typing import Callable, NamedTuple
 
 from jaxlp.cliutil import Parser, check_output_dir, interrupted
 from sweeps import scenario_args
-from sweeps.grid import (DIRECTIONS_RAD, GridError, direction_rad, parse_directions, parse_impulses,
+from sweeps.grid import (DIRECTIONS_RAD, ENGINES, GridError, direction_rad, parse_directions, parse_impulses,
                          parse_phases)
 from sweeps.plan import plan_runs
 from sweeps.presets import PRESETS
@@ -57,11 +57,12 @@ def register_command(name: str, help: str, add_arguments: Callable, run: Callabl
 
 
 def _register_tuning_commands() -> None:
-    """``coman-sweep tune`` and ``coman-sweep region`` (parsers and run functions live in their modules)."""
-    from sweeps import region_cli, tune
+    """``coman-sweep tune``, ``region`` and ``engines`` (parsers and run functions live in their modules)."""
+    from sweeps import engines_cli, region_cli, tune
 
     register_command("tune", tune.HELP, tune.add_arguments, tune.run)
     register_command("region", region_cli.HELP, region_cli.add_arguments, region_cli.run)
+    register_command("engines", engines_cli.HELP, engines_cli.add_arguments, engines_cli.run)
 
 
 _register_tuning_commands()
@@ -146,6 +147,8 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
     a("--seed", type=int, help="PRNG seed (default 0)")
     a("--chunk", type=_number("--chunk", int, 0, True), help="rollouts per jitted call (default 256)")
     a("--x64", action="store_true", default=None, help="simulate in 64-bit floats")
+    a("--engine", choices=ENGINES, help="mjx: the physics engine, mjx (MuJoCo MJX, default) or native (MuJoCo C "
+                                        "on every CPU core; no gradients); part of the sweep's identity")
     scenario_args.add_arguments(p)
 
 

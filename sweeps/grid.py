@@ -36,6 +36,7 @@ RESULTS_VERSION = 4  # in every hash: 2 judges MJX walks on ground truth (steps 
 
 
 # scenario axes (mjx_coman.scenarios.Scenario fields) a sweep may vary; terrain is one value per config
+ENGINES = ("mjx", "native")  # mjx_coman.engines.ENGINES (checked without importing mjx_coman)
 SCENARIO_AXES = ("actuator", "delay_ms", "imu_noise_deg", "joint_noise_deg", "payload_kg", "slope_deg", "terrain")
 TEXT_AXES = ("actuator", "terrain")  # axes whose values are words
 MJX_CONTROL_PERIOD_S = 0.002
@@ -83,6 +84,8 @@ class SweepConfig:
         seed: PRNG seed.
         chunk: rollouts per chunk (one jitted call; also the resume unit).
         x64: simulate in 64-bit floats.
+        engine: MJX: the physics engine, ``mjx`` (MuJoCo MJX, differentiable) or ``native`` (MuJoCo C over
+            the CPU's threads, :mod:`mjx_coman.engines`).
     """
 
     model: str = "3lp"
@@ -113,6 +116,7 @@ class SweepConfig:
     seed: int = 0
     chunk: int = 256
     x64: bool = False
+    engine: str = "mjx"
 
     def validate(self) -> "SweepConfig":
         """Raise :class:`GridError` naming the first bad value; return ``self``.
@@ -158,6 +162,10 @@ class SweepConfig:
                 if self.model != model and getattr(self, name) != 0:
                     raise GridError(f"{name} applies to --model {model} only, got {getattr(self, name)} "
                                     f"with --model {self.model}")
+        if self.engine not in ENGINES:
+            raise GridError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.model != "mjx" and self.engine != "mjx":
+            raise GridError(f"engine applies to --model mjx only, got {self.engine!r} with --model {self.model}")
         if self.model != "3lp" and self.recover_tol != SweepConfig.recover_tol:
             raise GridError(f"recover_tol applies to --model 3lp only (mjx walks are judged on ground truth)")
         if self.model != "3lp" and self.robot != SweepConfig.robot:
@@ -291,6 +299,8 @@ class SweepConfig:
             del d["directions"]  # likewise
         if self.repeats == 1:
             del d["repeats"]  # likewise
+        if self.engine == "mjx":
+            del d["engine"]  # likewise
         d["results_version"] = RESULTS_VERSION
         return d
 

@@ -17,6 +17,7 @@ MODELFIELDS = {
     "randomize_leg": {"3lp": "randomize_leg_pct"},
     "randomize_spring": {"mjx": "randomize_spring_pct"},
     "randomize_delay": {"mjx": "randomize_delay_ticks"},
+    "engine": {"mjx": "engine"},
 }
 FIELDS = dict(model="model", robot="robot", phases="phases", impulses="impulses_ns", direction="direction",
                directions="directions", repeats="repeats",

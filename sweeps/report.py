@@ -201,7 +201,8 @@ def summarize(run: SweepRun) -> dict:
     s2r = _steps_to_recover(res, ok)
     several = len(cfg.direction_list) > 1
     return dict(
-        model=cfg.model, controller=cfg.controller, controller_overrides=cfg.to_dict()["controller_overrides"],
+        model=cfg.model, engine=cfg.engine, controller=cfg.controller,
+        controller_overrides=cfg.to_dict()["controller_overrides"],
         direction=", ".join(cfg.direction_list), directions=list(cfg.direction_list),
         push_duration_s=cfg.push_duration_s, push_step=cfg.push_step,
         rollouts=int(cfg.n_rollouts), recovery_rate=recovery_rate(res),

@@ -118,15 +118,20 @@ def own_fields(config: SweepConfig) -> dict:
     return {"step_time_s": float(_gait(config).step_time_s)}
 
 
-def nominal_env(sensor_noise_scale: float, plant: str = "position"):
+def nominal_env(sensor_noise_scale: float, plant: str = "position", engine: str = "mjx"):
     """The nominal robot's environment parameters on a controller's plant (``Gait.plant``:
-    :func:`mjx_coman.rollout.plant_env_params`) with the sensor noise scaled (host-built, cached per float width)."""
-    return _nominal_env(float(sensor_noise_scale), str(plant), bool(jax.config.jax_enable_x64))
+    :func:`mjx_coman.rollout.plant_env_params`) with the sensor noise scaled, stepped by ``engine``
+    (host-built, cached per float width)."""
+    return _nominal_env(float(sensor_noise_scale), str(plant), bool(jax.config.jax_enable_x64), str(engine))
 
 
 @functools.lru_cache(maxsize=8)
-def _nominal_env(sensor_noise_scale: float, plant: str, x64: bool):
+def _nominal_env(sensor_noise_scale: float, plant: str, x64: bool, engine: str):
+    from mjx_coman.env import use_engine
     from mjx_coman.sensors import make_sensor_params
+
+    if engine != "mjx":
+        return use_engine(_nominal_env(sensor_noise_scale, plant, x64, "mjx"), engine)
 
     with jax.ensure_compile_time_eval():
         s = sensor_noise_scale
@@ -155,7 +160,8 @@ def _scenario_env(config: SweepConfig, x64: bool):
     from mjx_coman.scenarios import batched_env_params
 
     with jax.ensure_compile_time_eval():
-        return batched_env_params(nominal_env(config.sensor_noise_scale, gait(config).plant), scenario_list(config))
+        return batched_env_params(nominal_env(config.sensor_noise_scale, gait(config).plant, config.engine),
+                                  scenario_list(config))
 
 
 def controller(config: SweepConfig):
@@ -258,7 +264,7 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
     ro = _rollout_module()
     ctrl, cfg = controller(config)
     g = ctrl.gait(cfg)
-    env = nominal_env(config.sensor_noise_scale, g.plant)
+    env = nominal_env(config.sensor_noise_scale, g.plant, config.engine)
     key = jax.random.wrap_key_data(inputs.key, impl="threefry2x32")
     walk_key, robot_key = jax.random.split(key)
     if config.scenario:
@@ -288,7 +294,7 @@ def rollout(config: SweepConfig, inputs: RolloutInputs, aux) -> RolloutOutputs:
 
 def prepare(config: SweepConfig, inputs: RolloutInputs):
     """Build (and cache) the nominal robot and the controller's config outside the sharded call's trace."""
-    nominal_env(config.sensor_noise_scale, gait(config).plant)
+    nominal_env(config.sensor_noise_scale, gait(config).plant, config.engine)
     if config.scenario:
         scenario_env(config)
     controller(config)
