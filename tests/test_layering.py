@@ -9,7 +9,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 LAYERS = {"jaxlp": set(), "mjx_coman": {"jaxlp"}, "sweeps": {"jaxlp", "mjx_coman"}}
 CLI_MODULES = {"mjx_coman.walk", "mjx_coman.seed000.cli", "mjx_coman.seed000.__main__", "mjx_coman.studies.cli",
-               "mjx_coman.studies.__main__", "mjx_coman.experiments", "sweeps.cli", "sweeps.region_cli",
+               "mjx_coman.studies.__main__", "mjx_coman.experiments", "sweeps.cli", "sweeps.region_cli", "sweeps.engines_cli",
                "jaxlp.__main__", "sweeps.__main__"}
 ENTRY_IMPORTERS = {"sweeps.cli", "sweeps.__main__"}  # the command line registers the subcommands
 CLI_SUPPORT = "jaxlp.cliutil"  # what the command lines share; only they import it
