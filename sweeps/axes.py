@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 
 import numpy as np
@@ -13,6 +14,17 @@ MAX_AXIS = 100_000  # values of one grid axis (--phases N, --impulses a:b:N), ch
 
 class GridError(ValueError):
     """A bad sweep configuration (the command line turns it into exit status 2)."""
+
+
+def arg_type(parse):
+    """``parse`` as an argparse ``type``: a :class:`GridError` becomes the one-line usage error."""
+    def conv(text):
+        try:
+            return parse(text)
+        except GridError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    conv.__name__ = parse.__name__
+    return conv
 
 
 def direction_rad(name: str) -> float:

@@ -34,8 +34,8 @@ from typing import Callable, NamedTuple
 
 from jaxlp.cliutil import Parser, check_output_dir, interrupted
 from sweeps import scenario_args
-from sweeps.grid import (DIRECTIONS_RAD, ENGINES, GridError, direction_rad, parse_directions, parse_impulses,
-                         parse_phases)
+from sweeps.grid import (DIRECTIONS_RAD, ENGINES, GridError, arg_type, direction_rad, parse_directions,
+                         parse_impulses, parse_phases)
 from sweeps.plan import plan_runs
 from sweeps.presets import PRESETS
 
@@ -66,16 +66,6 @@ def _register_tuning_commands() -> None:
 
 
 _register_tuning_commands()
-
-
-def _arg(parse):
-    def conv(text):
-        try:
-            return parse(text)
-        except GridError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-    conv.__name__ = parse.__name__
-    return conv
 
 
 def _one_direction(text: str) -> str:
@@ -110,12 +100,12 @@ def _grid_options(p: argparse.ArgumentParser) -> None:
     a = p.add_argument
     a("--model", help="rollout model: 3lp (default) or mjx (COMAN in MuJoCo MJX)")
     a("--robot", help="3LP parameter preset (default coman)")
-    a("--phases", type=_arg(parse_phases),
+    a("--phases", type=arg_type(parse_phases),
       help="push start in the step: a count N (N phases in [0, 1)) or a list 0,0.25 (default 16)")
-    a("--impulses", type=_arg(parse_impulses), help="impulses in N s: start:stop:num or a list (default 0:20:41)")
-    a("--direction", type=_arg(_one_direction),
+    a("--impulses", type=arg_type(parse_impulses), help="impulses in N s: start:stop:num or a list (default 0:20:41)")
+    a("--direction", type=arg_type(_one_direction),
       help=f"push direction: {', '.join(DIRECTIONS_RAD)} or degrees from forward, + left (default forward)")
-    a("--directions", type=_arg(parse_directions),
+    a("--directions", type=arg_type(parse_directions),
       help="several push directions, each a whole grid: a count N (N headings from forward) or a list "
            "forward,45,left (compare --model mjx: 8)")
     a("--repeats", type=_number("--repeats", int, 1),

@@ -19,19 +19,9 @@ import sys
 from pathlib import Path
 
 from jaxlp.cliutil import check_output_dir
-from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, parse_impulses, parse_phases
+from sweeps.grid import DIRECTIONS_RAD, GridError, SweepConfig, arg_type, parse_impulses, parse_phases
 
 HELP = "the same pushes on both physics engines (mjx, native): agreement of outcomes and pelvis trajectories"
-
-
-def _conv(parse):
-    def conv(text):
-        try:
-            return parse(text)
-        except GridError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-    conv.__name__ = parse.__name__
-    return conv
 
 
 def _list(text: str) -> tuple[str, ...]:
@@ -45,8 +35,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``coman-sweep engines`` (registered by :mod:`sweeps.cli`)."""
     a = p.add_argument
     a("--controllers", type=_list, default=("time-projection",), help="controllers (default time-projection)")
-    a("--phases", type=_conv(parse_phases), default=parse_phases("8"), help="push phases (default 8)")
-    a("--impulses", type=_conv(parse_impulses), default=parse_impulses("0:12:16"),
+    a("--phases", type=arg_type(parse_phases), default=parse_phases("8"), help="push phases (default 8)")
+    a("--impulses", type=arg_type(parse_impulses), default=parse_impulses("0:12:16"),
       help="impulses, N s (default 0:12:16)")
     a("--directions", type=_list, default=("forward", "backward", "left", "right"),
       help=f"push directions among {', '.join(DIRECTIONS_RAD)} (default the four)")

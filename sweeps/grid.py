@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sweeps.axes import (DIRECTIONS_RAD, MAX_AXIS, GridError, direction_rad, parse_directions,  # noqa: F401
+from sweeps.axes import (DIRECTIONS_RAD, MAX_AXIS, GridError, arg_type, direction_rad, parse_directions,  # noqa: F401
                          parse_impulses, parse_phases)
 
 RESULTS_VERSION = 4  # in every hash: 2 judges MJX walks on ground truth (steps to recover, falls), as 1 did not;

@@ -26,21 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from jaxlp.cliutil import check_no_overwrite, check_output_dir
-from sweeps.grid import DIRECTIONS_RAD, GridError, parse_impulses, parse_phases
+from sweeps.grid import DIRECTIONS_RAD, GridError, arg_type, parse_impulses, parse_phases
 
 HELP = "largest recoverable impulse per push timing: safeguarded Newton on the margin vs bisection"
 CONTROLLERS_3LP = ("time-projection", "dlqr", "open-loop")  # the 3lp model's (sweeps.models.threelp.COMPARE)
 SETTABLE = ("lqr_weight_scale",)  # --set: the filter constants of the sensing regions come from --constants
-
-
-def _conv(parse):
-    def conv(text):
-        try:
-            return parse(text)
-        except GridError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-    conv.__name__ = parse.__name__
-    return conv
 
 
 def _names(allowed, what):
@@ -68,9 +58,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="controllers of the regions figure (comma-separated)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting of the 3LP controllers: lqr_weight_scale=P,V,T (the DLQR weight multipliers)")
-    p.add_argument("--phases", type=_conv(parse_phases), default=None,
+    p.add_argument("--phases", type=arg_type(parse_phases), default=None,
                    help="push timings: a count N or a list in [0, 1) (default 32; mjx 4)")
-    p.add_argument("--impulses", type=_conv(parse_impulses), default=None,
+    p.add_argument("--impulses", type=arg_type(parse_impulses), default=None,
                    help="impulse grid, N s, of the map and the bisection (default 0:20:81; mjx 0:12:25)")
     p.add_argument("--directions", type=_names(tuple(DIRECTIONS_RAD), "directions"), default=("forward", "backward"))
     p.add_argument("--n-steps", type=int, default=None,
