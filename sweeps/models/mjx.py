@@ -56,18 +56,8 @@ import numpy as np
 
 from sweeps.grid import GridError, SweepConfig
 from sweeps.models import Model, RolloutInputs, RolloutOutputs, check_settings
-
-
-def _controllers():
-    from mjx_coman import controllers
-
-    return controllers
-
-
-def _rollout_module():
-    from mjx_coman import rollout
-
-    return rollout
+from sweeps.models.mjx_env import _controllers, _rollout_module, nominal_env  # noqa: F401 (nominal_env: the model's API)
+from sweeps.models.mjx_tune import holdout_grid, tune_problem
 
 
 def check(config: SweepConfig, build: bool = True) -> None:
@@ -113,31 +103,6 @@ def _gait(config: SweepConfig):
 def own_fields(config: SweepConfig) -> dict:
     """The controller's own step time (its gait's, with the config's overrides): a walk of ``n_steps`` of it."""
     return {"step_time_s": float(_gait(config).step_time_s)}
-
-
-def nominal_env(sensor_noise_scale: float, plant: str = "position", engine: str = "mjx"):
-    """The nominal robot's environment parameters on a controller's plant (``Gait.plant``:
-    :func:`mjx_coman.rollout.plant_env_params`) with the sensor noise scaled, stepped by ``engine``
-    (host-built, cached per float width)."""
-    return _nominal_env(float(sensor_noise_scale), str(plant), bool(jax.config.jax_enable_x64), str(engine))
-
-
-@functools.lru_cache(maxsize=8)
-def _nominal_env(sensor_noise_scale: float, plant: str, x64: bool, engine: str):
-    from mjx_coman.env import use_engine
-    from mjx_coman.sensors import make_sensor_params
-
-    if engine != "mjx":
-        return use_engine(_nominal_env(sensor_noise_scale, plant, x64, "mjx"), engine)
-
-    with jax.ensure_compile_time_eval():
-        s = sensor_noise_scale
-        d = make_sensor_params()
-        sensor = make_sensor_params(imu_orientation_noise_rad=float(d.imu_orientation_noise_rad) * s,
-                                    gyro_noise_rad_per_s=float(d.gyro_noise_rad_per_s) * s,
-                                    ft_force_noise_n=float(d.ft_force_noise_n) * s,
-                                    ft_torque_noise_nm=float(d.ft_torque_noise_nm) * s)
-        return dataclasses.replace(_rollout_module().plant_env_params(plant), sensor=sensor)
 
 
 def scenario_list(config: SweepConfig) -> list:
@@ -317,8 +282,6 @@ def compare_default() -> tuple[str, ...]:
 
 def load() -> Model:
     """The registry entry."""
-    from sweeps.models.mjx_tune import holdout_grid, tune_problem
-
     return Model(rollout, ticks_per_rollout, controllers=controller_names, compare_default=compare_default,
                  settings=settings, check=check, prepare=prepare,
                  env_step_s=env_step_s, tune_problem=tune_problem, holdout_grid=holdout_grid,

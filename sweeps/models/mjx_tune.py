@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from sweeps.models import TuneProblem
-from sweeps.models.mjx import _controllers, _rollout_module, nominal_env
+from sweeps.models.mjx_env import _controllers, _rollout_module, nominal_env
 
 TUNE_SECONDS_AFTER = 0.8  # the walk goes on two steps after the push (the sway they take)
 
