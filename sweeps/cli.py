@@ -300,9 +300,12 @@ def _sweep(args, parser) -> int:
     except (GridError, ValueError, RuntimeError) as e:
         parser.error(str(e))
     main_process = jax.process_index() == 0
-    workers = args.jobs or default_workers(len(runnable))
+    native = any(c.engine == "native" for _, c, _ in runnable)  # its physics already uses every core
+    workers = args.jobs or (1 if native else default_workers(len(runnable)))
     if workers > 1 and jax.process_count() > 1:
         parser.error(f"--jobs {workers} runs sweeps in local processes; with jax.distributed give --jobs 1")
+    if jax.process_count() > 1 and native:
+        parser.error("--engine native steps the physics on one host's threads; with jax.distributed use --engine mjx")
 
     def done(i, run):
         out = runnable[i][0]

@@ -162,6 +162,13 @@ def chunk_path(chunk_dir: Path, i: int) -> Path:
     return Path(chunk_dir) / f"chunk_{i:05d}.npz"
 
 
+def sweep_devices(config: SweepConfig) -> tuple:
+    """The devices a sweep's chunks are laid out over: every device, or the first alone for the native
+    engine (its physics runs on the host's threads, from one callback per step)."""
+    devices = tuple(jax.devices())
+    return devices[:1] if config.engine == "native" else devices
+
+
 def _chunk_fn(config: SweepConfig, rollout: Callable, devices: tuple):
     """The jitted, sharded batch rollout of a chunk (cached per configuration and devices)."""
     key = (config, rollout, devices)
@@ -281,7 +288,7 @@ def run_sweep(config: SweepConfig, out_dir: Path, *, resume: bool = False, force
         raise conflict or SweepConflict(f"{out_dir} holds a different sweep (see process 0)")
     todo = [i for i in range(n_chunks) if not status[1 + i]]
     inputs = grid_inputs(config)
-    devices = tuple(jax.devices())
+    devices = sweep_devices(config)
     padded = math.ceil(chunk / len(devices)) * len(devices)
     rows = lambda i: min(chunk, n - i * chunk)  # noqa: E731
     delay_s = float(os.environ.get(DELAY_ENV, "0") or 0)

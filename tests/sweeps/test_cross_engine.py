@@ -75,3 +75,13 @@ def test_bad_arguments_exit_2_with_one_line(args, message, tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
     assert message in r.stderr and len(r.stderr.strip().splitlines()) <= 2  # usage line + the error
+
+
+def test_a_native_sweep_runs_on_one_device_of_several(monkeypatch):
+    import jax
+
+    from sweeps import runner
+
+    monkeypatch.setattr(jax, "devices", lambda: ["cpu:0", "cpu:1", "cpu:2", "cpu:3"])
+    assert runner.sweep_devices(SweepConfig(model="mjx")) == ("cpu:0", "cpu:1", "cpu:2", "cpu:3")
+    assert runner.sweep_devices(SweepConfig(model="mjx", engine="native")) == ("cpu:0",)
