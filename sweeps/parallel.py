@@ -1,9 +1,10 @@
 """Several sweeps at once, one worker process each (``coman-sweep compare``, held-out validation).
 
-On a CPU an MJX sweep runs on one host device (two host devices deadlocked, see the README), and its
-whole-body QPs loop over the problems, so one core does most of the work while the others idle. Separate
-processes put every core to use: each worker runs :func:`sweeps.runner.run_sweep` into its own folder, so a
-killed run resumes as a serial one does, and the results do not depend on the number of workers.
+On a CPU an MJX sweep runs on one host device unless ``XLA_FLAGS`` asks for more (several host devices need
+the larger intra-op pool that :mod:`jaxlp.xla_flags` sets), and its whole-body QPs loop over the problems, so
+one core does most of the work while the others idle. Separate processes put every core to use: each worker
+runs :func:`sweeps.runner.run_sweep` into its own folder, so a killed run resumes as a serial one does, and
+the results do not depend on the number of workers.
 """
 
 from __future__ import annotations

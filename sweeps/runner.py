@@ -5,7 +5,11 @@ has the same shapes and compiles once) is padded to a multiple of the device
 count and laid out as a global array over ``Mesh(jax.devices(), ("batch",))``
 with ``PartitionSpec("batch")``: each device runs its slice of the chunk in one
 jitted ``vmap`` of the model's rollout. The few scalars a rollout returns are
-gathered to the host (across processes with ``process_allgather``).
+gathered to the host (across processes with ``process_allgather``). Several
+CPU host devices run their slices at once in one shared intra-op thread pool,
+which :mod:`jaxlp.xla_flags` sizes so that a batched LAPACK call (MJX's
+Cholesky factorisations) waiting on every device still leaves threads to run
+the pieces they wait for.
 
 Each finished chunk is written atomically (temporary file in the same folder,
 then ``os.replace``) under ``OUT/chunks/``. ``OUT/config.json`` holds the

@@ -45,7 +45,7 @@ def pytest_unconfigure(config):
         shutil.rmtree(owned, ignore_errors=True)
 
 SHARED_GROUPS = {
-    "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py"),
+    "walks": ("test_contract.py", "test_rollout.py", "test_ground_truth.py", "test_estimation.py", "test_native.py"),
     "walk-subprocesses": ("test_walk_cli.py", "test_notebook_03.py"),
     "studies-subprocesses": ("test_studies_cli.py", "test_notebook_06.py"),
     "side-by-side": ("test_scorecard.py", "test_notebook_08.py"),
@@ -56,7 +56,7 @@ SHARED_GROUPS = {
 LONGEST_FIRST = ("studies-subprocesses", "side-by-side", "walk-subprocesses",
                  "walks", "torque-walks-footstep-mpc",
                  "torque-walks-wbc-stand", "torque-walks-straight-leg", "tests/mjx_coman/test_env.py",
-                 "tests/sweeps/test_sweeps.py", "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py",
+                 "tests/sweeps/test_sweeps.py", "tests/sweeps/test_sharded.py", "tests/mjx_coman/test_scenarios.py", "tests/sweeps/test_tune.py",
                  "tests/jaxlp/test_simulate.py", "tests/mjx_coman/test_notebook_02.py", "tests/mjx_coman/test_sensors.py")
 
 
