@@ -45,6 +45,10 @@ CASES = [
     ("coman-sweep", ["tune", "--batch", "1000000000", "--out", OUT], "batch"),
     ("coman-sweep", ["region", "--draws", "0", "--out", OUT], "draws"),
     ("coman-sweep", ["region", "--out", "/proc/x"], "/proc"),
+    ("coman-sweep", ["map", "--model", "3lp", "--engine", "native", "--out", OUT], "--model mjx only"),
+    ("coman-sweep", ["engines", "--controllers", "nope", "--out", OUT], "unknown controller 'nope'"),
+    ("coman-sweep", ["engines", "--directions", "up", "--out", OUT], "unknown direction 'up'"),
+    ("coman-sweep", ["engines", "--seconds", "0", "--out", OUT], "--seconds"),
     ("mjcf", ["--bogus"], "--bogus"),
 ]
 

@@ -1,19 +1,13 @@
-"""sweeps.cross_engine and ``coman-sweep engines``: outcome agreement of two sweeps, the engine field of a
-sweep's identity, and bad arguments."""
+"""sweeps.cross_engine: outcome agreement of two sweeps; the engine field of a sweep's identity and devices
+(``coman-sweep engines``' bad arguments are in ``tests/test_entry_points.py``)."""
 
 from __future__ import annotations
-
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sweeps.cross_engine import boundary_gap_ns, outcome_agreement
 from sweeps.grid import GridError, SweepConfig
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _grid(fell):
@@ -62,19 +56,6 @@ def test_the_engine_is_part_of_a_sweeps_identity_and_mjx_keeps_the_old_hash():
         SweepConfig(model="mjx", engine="ode").validate()
     with pytest.raises(GridError, match="--model mjx only"):
         SweepConfig(model="3lp", engine="native").validate()
-
-
-@pytest.mark.parametrize("args, message", [
-    (["engines", "--controllers", "nope"], "unknown controller 'nope'"),
-    (["engines", "--directions", "up"], "unknown direction 'up'"),
-    (["engines", "--seconds", "0"], "--seconds must be positive"),
-    (["map", "--model", "3lp", "--engine", "native"], "--engine applies to --model mjx only"),
-])
-def test_bad_arguments_exit_2_with_one_line(args, message, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "sweeps", *args, "--out", str(tmp_path / "o")], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2, r.stderr
-    assert message in r.stderr and len(r.stderr.strip().splitlines()) <= 2  # usage line + the error
 
 
 def test_a_native_sweep_runs_on_one_device_of_several(monkeypatch):
