@@ -1,7 +1,7 @@
-"""The project's pure array functions executed by NumPy: the controller of the native baseline.
+"""The project's pure array functions executed by NumPy: the controller of ``bench/numpy_twin_loop.py``.
 
-``bench/sweep_throughput.py`` compares the batched MJX sweep with "the same
-controller in NumPy driving native MuJoCo, one rollout at a time". Rather than
+``bench/sweep_throughput.py`` also times "the same controller in NumPy driving
+native MuJoCo, one rollout at a time" (``numpy_twin_steps_per_s``). Rather than
 a hand port of the walking controller (estimation, time-projection table,
 adaptive lift, inverse kinematics, knee compensation, hip switching), which
 would drift from the real one, :func:`twin` rebuilds a function of the

@@ -1,34 +1,26 @@
-"""Closed-loop environment steps per second of the MJX sweep, against native MuJoCo driven from NumPy.
+"""Closed-loop environment steps per second: MJX, the native engine, the peer, and the physics alone.
 
-    python bench/sweep_throughput.py [--batch 1 16 64] [--seconds 0.8] [--native-seconds 2] [--json]
+    python bench/sweep_throughput.py [--batch 64 256 1024] [--seconds 0.8] [--repeats 1] [--no-twin] [--json]
 
-MJX side: the sweep's own rollout (``sweeps.models.mjx``: one pushed walk of
-COMAN under the registered ``time-projection`` controller of
-``mjx_coman.controllers``), jitted and vmapped over ``--batch`` rollouts of
-``--seconds`` each, as ``coman-sweep map --model mjx`` runs a chunk.
-Compilation is timed apart; the best of ``--repeats`` timed calls counts.
+Every closed loop runs the same walks: :func:`mjx_coman.rollout.batched_walk` of the registered
+``time-projection`` controller on its plant (jitted once per engine and batch, vmapped over the batch), each
+robot pushed forward with its own impulse (0-4 N s) and timing. Compilation is timed apart (``first_call_s``);
+the best of ``--repeats`` timed calls counts.
 
-Peer baseline: what a researcher writes without this tool, one rollout at a
-time: ``mujoco.mj_step`` on the same scene (``mjx_coman.model_path()``, 1 ms
-timestep, 2 physics steps per 2 ms control tick) with the same actuator model
-in NumPy (eq. 25 position loop on the motor shaft with the same gains and the
-20 ms delay line, series springs and motors of eq. 19-20), the sensors read
-from ``MjData`` (backlash, 12-bit encoders, IMU noise, foot forces from
-``mj_contactForce``) and the same walking controller: the source of
-``mjx_coman.controllers.time_projection.controller.step`` (estimation, eq. 26-27, table B,
-adaptive lift, IK, eq. 21 and 24) executed by NumPy through
-``bench/numpy_twin.py`` (``pytest -m slow tests/bench`` checks it gives the
-JAX controller's targets). That controller costs about 2,600 Python-level NumPy calls a tick
-(about 110 of them ``np.stack`` calls, most building 3x3 rotations);
-a hand-tuned port (scalar ``math`` for the rotations, say) would be faster,
-so the run also times the physics alone (the same walk replaying the recorded
-targets through the delay line, SEA model and ``mj_step``): the bound no
-NumPy controller can beat, ``native_physics_only_steps_per_s``.
+* ``mjx_steps_per_s``: physics in MuJoCo MJX, by batch;
+* ``native_steps_per_s``: physics in MuJoCo C (:mod:`mjx_coman.engines.native`) on every core, by batch, and on
+  one thread at the largest batch (``native_1_thread_steps_per_s``);
+* ``peer_steps_per_s``: what a user writes without this tool: one robot at a time, ``mj_step`` and the same
+  jitted controller once per tick, one thread (the native engine at batch 1 on one thread; its two host
+  callbacks a tick cost ``callback_overhead_us`` each, measured apart);
+* ``physics_only_steps_per_s``: MuJoCo C replaying a walk's recorded link torques (each held over its tick's
+  2 physics steps), no controller, motors or sensors, one thread and all threads: the limit no closed loop
+  beats;
+* ``numpy_twin_steps_per_s`` (unless ``--no-twin``): the former peer, the controller's own source executed by
+  NumPy (``bench/numpy_twin_loop.py``), one robot: what a line-by-line NumPy port costs.
 
-One environment step = one 2 ms control tick of one robot (2 physics steps).
-Prints ``{"mjx_steps_per_s": {batch: steps/s}, "native_steps_per_s": ...,
-"ratio": best MJX / native, "native_physics_only_steps_per_s": ..., "ratio_to_physics_only": ...,
-"backend": ..., "device": ...}`` (``--json``).
+The ratios: the best closed loop against the peer and against the all-threads physics-only limit.
+One environment step = one 2 ms control tick of one robot (2 physics steps of 1 ms).
 """
 
 from __future__ import annotations
@@ -38,243 +30,171 @@ from jaxlp.xla_flags import configure_cpu
 configure_cpu()  # the project's XLA CPU flags, before JAX starts (jaxlp.xla_flags)
 
 import argparse  # noqa: E402
-import os
-import platform
-import time
+import concurrent.futures  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-import numpy_twin  # noqa: E402  (bench/: run as python bench/sweep_throughput.py)
 from jaxlp.files import strict_json  # noqa: E402
-from sweeps.grid import SweepConfig  # noqa: E402
-from sweeps.models import RolloutInputs  # noqa: E402
-from sweeps.models import mjx as model_mjx  # noqa: E402
-from sweeps.runner import rollout_keys  # noqa: E402
+from mjx_coman import controllers, env as env_mod, rollout as ro  # noqa: E402
+from mjx_coman.engines.native import default_threads  # noqa: E402
 
-STEP_TIME_S = 0.4
+CONTROLLER = "time-projection"
 
 
-def sweep_config(seconds: float, batch: int, controller: str = "time-projection") -> SweepConfig:
-    n_steps = max(1, int(round(seconds / STEP_TIME_S)) - 1)  # the walk adds its start-up phase
-    return SweepConfig(model="mjx", controller=controller, phases=(0.5,), impulses_ns=(2.0,), n_steps=n_steps,
-                       push_step=min(1, n_steps - 1), chunk=batch)
+def link_torque(state):
+    """A save function: the link torques of the tick's last physics step."""
+    return state.env.data.ctrl
 
 
-def mjx_throughput(batch: int, seconds: float, repeats: int) -> dict:
-    """Env steps/s of a batch of sweep rollouts (compilation apart)."""
-    cfg = sweep_config(seconds, batch).compiled_part()
-    model = model_mjx.load()
-    idx = np.arange(batch, dtype=np.int32)
-    inputs = RolloutInputs(index=jnp.asarray(idx), key=jnp.asarray(rollout_keys(0, idx)),
-                           phase=jnp.asarray(np.linspace(0.0, 0.9, batch), jnp.float32),
-                           impulse_ns=jnp.asarray(np.linspace(0.0, 4.0, batch), jnp.float32),
-                           direction_rad=jnp.zeros(batch, jnp.float32))
-    model.prepare(cfg, inputs)
-    fn = jax.jit(jax.vmap(lambda i: model.rollout(cfg, i, None)))
+def _walk_inputs(batch: int, seconds: float):
+    ctrl, cfg = controllers.load(CONTROLLER)
+    g = ctrl.gait(cfg)
+    start = g.first_step_s + (1.0 + np.linspace(0.0, 0.9, batch)) * g.step_time_s
+    force = np.zeros((batch, 3), np.float32)
+    force[:, 0] = np.linspace(0.0, 40.0, batch)
+    push = ro.Push(start_s=jnp.asarray(start, jnp.float32), duration_s=jnp.full(batch, 0.1, jnp.float32),
+                   force_n=jnp.asarray(force))
+    keys = jax.random.split(jax.random.key(0), batch)
+    return ctrl, cfg, g, push, keys, ro.WalkSpec(seconds=seconds)
+
+
+def env_for(engine: str, threads: int | None = None):
+    ctrl, cfg = controllers.load(CONTROLLER)
+    env = ro.plant_env_params(ctrl.gait(cfg).plant)
+    return env if engine == "mjx" else env_mod.use_engine(env, "native", n_threads=threads)
+
+
+def closed_loop(engine: str, batch: int, seconds: float, repeats: int, threads: int | None = None) -> dict:
+    """Env steps/s of ``batch`` walks on ``engine`` (compilation apart)."""
+    ctrl, cfg, g, push, keys, spec = _walk_inputs(batch, seconds)
+    env = env_for(engine, threads)
+    fn = ro.batched_walk(ctrl, spec)
+    joy = controllers.joystick(0.0)
     t0 = time.perf_counter()
-    out = jax.block_until_ready(fn(inputs))
-    compile_s = time.perf_counter() - t0
+    out = jax.block_until_ready(fn(cfg, env, push, keys, joy))
+    first = time.perf_counter() - t0
     best = float("inf")
     for _ in range(repeats):
         t0 = time.perf_counter()
-        jax.block_until_ready(fn(inputs))
+        jax.block_until_ready(fn(cfg, env, push, keys, joy))
         best = min(best, time.perf_counter() - t0)
-    ticks = model.ticks_per_rollout(cfg)
-    return dict(batch=batch, ticks=ticks, seconds=best, first_call_s=compile_s, env_steps_per_s=batch * ticks / best,
+    ticks = ro.n_ticks(spec, g.control_period_s)
+    return dict(engine=engine, threads=None if engine == "mjx" else env.engine.n_threads, batch=batch, ticks=ticks,
+                first_call_s=first, seconds=best, env_steps_per_s=batch * ticks / best,
                 fell=int(np.sum(np.asarray(out.fell))))
 
 
-class NativeSensors:
-    """COMAN's sensors read from ``mujoco.MjData`` with the project's sensor functions run by NumPy."""
+def callback_overhead_us(n: int = 2000) -> float:
+    """Time of one ``jax.pure_callback`` returning its input (one packed array of the engine's size) in a
+    jitted scan, us."""
+    size = 1000
 
-    def __init__(self, m, sensor_params: dict, seed: int = 0):
-        from mjx_coman import sensors
+    def body(c, _):
+        return jax.pure_callback(lambda x: np.asarray(x), jax.ShapeDtypeStruct(c.shape, c.dtype), c,
+                                 vmap_method="broadcast_all"), None
 
-        self.m, self.p = m, sensor_params
-        self.rng = np.random.default_rng(seed)
-        self.backlash, self.quantize = numpy_twin.twin(sensors.backlash), numpy_twin.twin(sensors.quantize)
-        self.quat_mul, self.quat_to_rpy = numpy_twin.twin(sensors.quat_mul), numpy_twin.twin(sensors.quat_to_rpy)
-        self.small_rotation = numpy_twin.twin(sensors._small_rotation_quat)
-        self.Readings = sensors.Readings
-        feet = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ("RFoot", "LFoot")]
-        self.foot_of_body = {b: i for i, b in enumerate(feet)}  # (right, left), as Readings
-        self.force = np.zeros(6)
-
-    def reset(self, q):
-        self.out = np.array(q, float)
-
-    def read(self, d, motor_angle, motor_vel, pelvis_body):
-        p = self.p
-        self.out = self.backlash(self.out, d.qpos[7:], p["backlash_rad"])
-        link = self.quantize(self.out + p["encoder_offset_rad"], p["encoder_resolution_rad"])
-        noise = p["imu_orientation_noise_rad"] * self.rng.standard_normal(3)
-        quat = self.quat_mul(d.xquat[pelvis_body], self.small_rotation(noise))
-        quat = quat / np.linalg.norm(quat)
-        normal = np.zeros(2)
-        for i in range(d.ncon):
-            c = d.contact[i]
-            foot = self.foot_of_body.get(self.m.geom_bodyid[c.geom2], self.foot_of_body.get(self.m.geom_bodyid[c.geom1]))
-            if foot is None:
-                continue
-            mujoco.mj_contactForce(self.m, d, i, self.force)
-            normal[foot] += abs(self.force[:3] @ c.frame.reshape(3, 3)[:, 2])  # world z of the contact force
-        gyro = d.qvel[3:6] + p["gyro_noise_rad_per_s"] * self.rng.standard_normal(3)
-        zeros = np.zeros(6)
-        return self.Readings(
-            link_angle_rad=link, motor_angle_rad=numpy_twin.as_twin(motor_angle), motor_vel_rad_per_s=motor_vel,
-            imu_quat=quat, imu_rpy_rad=self.quat_to_rpy(quat), gyro_rad_per_s=gyro, ft_right=zeros, ft_left=zeros,
-            foot_normal_force_n=numpy_twin.as_twin(normal), contact=normal > p["contact_threshold_n"])
+    f = jax.jit(lambda c: jax.lax.scan(body, c, None, length=n)[0])
+    x = jnp.zeros(size)
+    jax.block_until_ready(f(x))
+    t0 = time.perf_counter()
+    jax.block_until_ready(f(x))
+    return (time.perf_counter() - t0) / n * 1e6
 
 
-class NativeCOMAN:
-    """COMAN in native MuJoCo, the SEA actuator model in NumPy, the walking controller run by NumPy.
-
-    The controller is :func:`mjx_coman.controllers.time_projection.controller.step` itself, executed
-    by NumPy through :mod:`numpy_twin` (same source, same parameters as the
-    sweep's ``mjx`` model); the sensors are read from ``mujoco.MjData`` by the
-    project's sensor functions (backlash, 12-bit quantisation, IMU noise, RPY),
-    also twinned, and the foot normal forces from ``mujoco.mj_contactForce``.
-    F/T wrenches and gyro rates, which the controller does not read, are not
-    computed.
-    """
-
-    def __init__(self, seconds: float, seed: int = 0):
-        from mjx_coman import model_path
-        from mjx_coman.actuators import MAX_DELAY_TICKS, SEA_MASK
-        from mjx_coman.env import standing_posture
-        from mjx_coman.controllers import joystick
-        from mjx_coman.controllers.base import Observation
-        from mjx_coman.controllers.time_projection import controller
-        from mjx_coman.sensors import model_ids
-
-        cfg = sweep_config(seconds, 1).compiled_part()
-        env, (_, ctrl) = model_mjx.nominal_env(cfg.sensor_noise_scale), model_mjx.controller(cfg)
-        self.Observation, self.joystick = Observation, numpy_twin.to_twin_tree(joystick(cfg.speed_mps))
-        self.m = mujoco.MjModel.from_xml_path(str(model_path()))
-        self.m.opt.timestep = float(env.model.opt.timestep)
-        self.d = mujoco.MjData(self.m)
-        self.a = {k: np.asarray(v, float) for k, v in env.actuator.__dict__.items()}
-        self.sen = {k: np.asarray(v, float) for k, v in env.sensor.__dict__.items()}
-        self.sea = np.asarray(SEA_MASK)
-        self.delay = int(env.actuator.delay_ticks)
-        self.buf_len = MAX_DELAY_TICKS + 1
-        self.n_sub = int(env.n_substeps)
-        self.knee_rad = float(ctrl.knee_rad)
-        self.cp = numpy_twin.to_twin_tree(ctrl)
-        self.ctl_init, self.ctl_step = numpy_twin.twin(controller.init), numpy_twin.twin(controller.step)
-        self.sensors = NativeSensors(self.m, self.sen, seed)
-        self.pelvis = model_ids()["pelvis_body"]
-        self.q0, self.root = standing_posture(self.knee_rad)
-
-    def reset(self):
-        mujoco.mj_resetData(self.m, self.d)
-        self.d.qpos[:7] = self.root
-        self.d.qpos[7:] = self.q0
-        mujoco.mj_forward(self.m, self.d)
-        self.th = np.array(self.q0, float)
-        self.dth = np.zeros_like(self.th)
-        self.buf = np.tile(self.q0, (self.buf_len, 1))
-        self.k = 0
-        self.sensors.reset(self.d.qpos[7:])
-        self.cs = self.ctl_init(self.cp)
-        self.targets = []
-
-    def _substep(self, target):
-        a = self.a
-        q, dq = self.d.qpos[7:], self.d.qvel[6:]
-        v = np.clip(a["kp_v_per_rad"] * (target - self.th), -a["supply_v"], a["supply_v"])
-        k, b = a["spring_stiffness_nm_per_rad"], a["spring_damping_nms_per_rad"]
-        tau_spring = k * (self.th - q) + b * (self.dth - dq)
-        visc = a["alpha_v_s_per_rad"] / a["beta_v_per_nm"] + a["friction_nms_per_rad"]
-        rhs = v / a["beta_v_per_nm"] - k * (self.th - q) + b * dq
-        jm, dt = a["rotor_inertia_nms2_per_rad"], self.m.opt.timestep
-        dth = (jm * self.dth + dt * rhs) / (jm + dt * (visc + b))
-        th = self.th + dt * dth
-        tau_rigid = v / a["beta_v_per_nm"] - (a["alpha_v_s_per_rad"] / a["beta_v_per_nm"] + a["friction_nms_per_rad"]) * dq
-        self.d.ctrl[:] = np.where(self.sea, tau_spring, tau_rigid)
-        self.th, self.dth = np.where(self.sea, th, q), np.where(self.sea, dth, dq)
-        mujoco.mj_step(self.m, self.d)
-
-    def actuate(self, target: np.ndarray) -> None:
-        """Delay line and the physics steps of one 2 ms tick."""
-        self.buf[self.k % self.buf_len] = target
-        delayed = self.buf[(self.k - self.delay) % self.buf_len]
-        for _ in range(self.n_sub):
-            self._substep(delayed)
-        self.k += 1
-
-    def step(self) -> np.ndarray:
-        """One 2 ms control tick: sensors, the walking controller, delay line, physics; returns the target."""
-        readings = self.sensors.read(self.d, self.th, self.dth, self.pelvis)
-        obs = self.Observation(readings, self.joystick, self.k * 0.002)
-        self.cs, cmd, _ = self.ctl_step(self.cp, self.cs, obs)
-        target = np.asarray(cmd.target, float)
-        self.actuate(target)
-        return target
+def recorded_torques(seconds: float) -> np.ndarray:
+    """(ticks, nu) link torques of one unpushed walk (native engine, one thread)."""
+    ctrl, cfg, g, push, keys, spec = _walk_inputs(1, seconds)
+    fn = ro.jit_walk(ctrl, spec, ro.SaveAt(link_torque, 1))
+    r = fn(cfg, env_for("native", 1), ro.no_push(), keys[0], controllers.joystick(0.0))
+    return np.asarray(r.saved, np.float64)
 
 
-def native_throughput(seconds: float, repeats: int) -> dict:
-    """Env steps/s of the native MuJoCo + NumPy controller loop, one rollout at a time.
+def physics_only(torques: np.ndarray, robots: int, threads: int) -> float:
+    """Env steps/s of ``robots`` robots replaying ``torques`` in MuJoCo C on ``threads`` threads."""
+    from mjx_coman.env import standing_posture
 
-    Also times the physics alone: the same walk replaying the recorded targets
-    (delay line, SEA model, ``mj_step``), the part no controller can shave off.
-    """
-    n = int(round(seconds / 0.002))
-    sim = NativeCOMAN(seconds)
-    best = replay = float("inf")
-    for _ in range(repeats):
-        sim.reset()
-        t0 = time.perf_counter()
-        targets = [sim.step() for _ in range(n)]
-        best = min(best, time.perf_counter() - t0)
-        fell = bool(sim.d.xpos[sim.pelvis][2] < 0.3)
-        sim.reset()
-        t0 = time.perf_counter()
-        for target in targets:
-            sim.actuate(target)
-        replay = min(replay, time.perf_counter() - t0)
-    return dict(ticks=n, seconds=best, env_steps_per_s=n / best, fell=fell,
-                physics_steps_per_s=sim.n_sub * n / best, physics_only_env_steps_per_s=n / replay)
+    env = env_for("native", 1)
+    m = env.engine.mj_model
+    q0, root = standing_posture()
+    n_sub = int(env.n_substeps)
+
+    def replay(count: int) -> None:
+        d = mujoco.MjData(m)
+        for _ in range(count):
+            mujoco.mj_resetData(m, d)
+            d.qpos[:7], d.qpos[7:] = root, q0
+            for tau in torques:
+                d.ctrl[:] = tau
+                for _ in range(n_sub):
+                    mujoco.mj_step(m, d)
+
+    parts = [robots * (k + 1) // threads - robots * k // threads for k in range(threads)]
+    t0 = time.perf_counter()
+    with concurrent.futures.ThreadPoolExecutor(threads) as pool:
+        list(pool.map(replay, parts))
+    return robots * len(torques) / (time.perf_counter() - t0)
 
 
 def main(argv=None) -> int:
-    gpu = jax.default_backend() != "cpu"
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--batch", type=int, nargs="+", default=[1, 256, 1024, 4096] if gpu else [1, 16, 64])
-    ap.add_argument("--seconds", type=float, default=4.0 if gpu else 0.8, help="walk length of the MJX batches, s")
-    ap.add_argument("--native-seconds", type=float, default=2.0, help="walk length of the native loop, s")
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--batch", type=int, nargs="+", default=[64, 256, 1024])
+    ap.add_argument("--seconds", type=float, default=0.8, help="walk length, s")
+    ap.add_argument("--peer-seconds", type=float, default=2.0, help="walk length of the peer and the replay, s")
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--no-twin", action="store_true", help="skip the NumPy-twin loop")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if min(args.batch) < 1 or args.seconds <= 0 or args.native_seconds <= 0 or args.repeats < 1:
-        ap.error("--batch, --seconds, --native-seconds and --repeats must be positive")
-    mjx_runs = [mjx_throughput(b, args.seconds, args.repeats) for b in args.batch]
-    native = native_throughput(args.native_seconds, args.repeats)
-    best = max(r["env_steps_per_s"] for r in mjx_runs)
+    if min(args.batch) < 1 or args.seconds <= 0 or args.peer_seconds <= 0 or args.repeats < 1:
+        ap.error(f"--batch, --seconds, --peer-seconds and --repeats must be positive, got {args.batch}, "
+                 f"{args.seconds}, {args.peer_seconds}, {args.repeats}")
+    cores = default_threads()
+    mjx_runs = [closed_loop("mjx", b, args.seconds, args.repeats) for b in args.batch]
+    native_runs = [closed_loop("native", b, args.seconds, args.repeats) for b in args.batch]
+    native_1 = closed_loop("native", max(args.batch), args.seconds, args.repeats, threads=1)
+    peer = closed_loop("native", 1, args.peer_seconds, args.repeats, threads=1)
+    torques = recorded_torques(args.peer_seconds)
+    robots = max(2 * cores, 8)
+    phys = {"1": physics_only(torques, robots, 1), str(cores): physics_only(torques, robots, cores)}
+    twin = None
+    if not args.no_twin:
+        import numpy_twin_loop  # noqa: E402  (bench/: run as python bench/sweep_throughput.py)
+
+        twin = numpy_twin_loop.twin_throughput(args.peer_seconds, args.repeats)
+    best_run = max(mjx_runs + native_runs + [native_1], key=lambda r: r["env_steps_per_s"])
+    best = best_run["env_steps_per_s"]
+    by_batch = lambda runs: {str(r["batch"]): round(r["env_steps_per_s"], 1) for r in runs}  # noqa: E731
     out = dict(
-        mjx_steps_per_s={str(r["batch"]): round(r["env_steps_per_s"], 1) for r in mjx_runs},
-        native_steps_per_s=round(native["env_steps_per_s"], 1),
-        ratio=round(best / native["env_steps_per_s"], 3),
-        native_physics_only_steps_per_s=round(native["physics_only_env_steps_per_s"], 1),
-        ratio_to_physics_only=round(best / native["physics_only_env_steps_per_s"], 3),
-        backend=f"MJX (JAX {jax.__version__}, {jax.default_backend()}); no Warp",
-        device=str(jax.devices()[0]) + (f" x{jax.device_count()}" if jax.device_count() > 1 else ""),
+        mjx_steps_per_s=by_batch(mjx_runs),
+        native_steps_per_s=by_batch(native_runs),
+        native_1_thread_steps_per_s={str(native_1["batch"]): round(native_1["env_steps_per_s"], 1)},
+        peer_steps_per_s=round(peer["env_steps_per_s"], 1),
+        physics_only_steps_per_s={k: round(v, 1) for k, v in phys.items()},
+        numpy_twin_steps_per_s=None if twin is None else round(twin["env_steps_per_s"], 1),
+        best=dict(engine=best_run["engine"], threads=best_run["threads"], batch=best_run["batch"],
+                  env_steps_per_s=round(best, 1)),
+        ratio_best_to_peer=round(best / peer["env_steps_per_s"], 3),
+        ratio_best_to_physics_only_all_threads=round(best / phys[str(cores)], 3),
+        ratio_native_to_mjx={str(a["batch"]): round(b["env_steps_per_s"] / a["env_steps_per_s"], 3)
+                             for a, b in zip(mjx_runs, native_runs)},
+        callback_overhead_us=round(callback_overhead_us(), 1),
+        threads=cores, controller=CONTROLLER,
         env_step="one 2 ms control tick of one robot (2 physics steps of 1 ms)",
-        cpu_count=os.cpu_count(), machine=platform.machine(), mujoco=mujoco.__version__,
-        mjx_runs=mjx_runs, native=native,
+        backend=f"JAX {jax.__version__} {jax.default_backend()}", device=str(jax.devices()[0]),
+        machine=platform.machine(), mujoco=mujoco.__version__,
+        runs=dict(mjx=mjx_runs, native=native_runs, native_1_thread=native_1, peer=peer, numpy_twin=twin),
     )
     if args.json:
         print(strict_json(out, indent=1))
     else:
-        for r in mjx_runs:
-            print(f"MJX batch {r['batch']:5d}: {r['env_steps_per_s']:12.0f} env steps/s "
-                  f"(first call {r['first_call_s']:.1f} s)")
-        print(f"native MuJoCo + NumPy: {native['env_steps_per_s']:12.0f} env steps/s; ratio {out['ratio']:.2f}")
-        print(f"native physics alone:  {native['physics_only_env_steps_per_s']:12.0f} env steps/s; "
-              f"ratio {out['ratio_to_physics_only']:.2f}")
+        for name in ("mjx_steps_per_s", "native_steps_per_s", "native_1_thread_steps_per_s", "peer_steps_per_s",
+                     "physics_only_steps_per_s", "numpy_twin_steps_per_s", "ratio_best_to_peer",
+                     "ratio_best_to_physics_only_all_threads"):
+            print(f"{name}: {out[name]}")
     return 0
 
 

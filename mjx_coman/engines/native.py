@@ -81,8 +81,20 @@ def _rows(condim: int) -> int:
     return 1 if condim == 1 else 2 * (condim - 1)
 
 
+THREADS_ENV = "COMAN_NATIVE_THREADS"
+
+
 def default_threads() -> int:
-    """The CPU cores this process may run on."""
+    """``COMAN_NATIVE_THREADS`` if set, else the CPU cores this process may run on.
+
+    Raises:
+        ValueError: a ``COMAN_NATIVE_THREADS`` that is not a whole number >= 1.
+    """
+    env = os.environ.get(THREADS_ENV, "").strip()
+    if env:
+        if not env.isdigit() or int(env) < 1:
+            raise ValueError(f"{THREADS_ENV}={env!r} must be a whole number >= 1")
+        return int(env)
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
@@ -148,7 +160,7 @@ class _Worker:
 
 
 class NativeEngine(Engine):
-    """MuJoCo C on ``n_threads`` threads (default: every core this process may use).
+    """MuJoCo C on ``n_threads`` threads (default :func:`default_threads`: every core this process may use).
 
     Raises:
         ValueError: a model with an elliptic friction cone (the slots decode pyramids), or ``n_threads`` not
@@ -168,7 +180,7 @@ class NativeEngine(Engine):
         self.n_threads = n
         self.slots = contact_slots(self.mj_model)
         self._workers = [_Worker(self.mj_model) for _ in range(n)]
-        self._pool = concurrent.futures.ThreadPoolExecutor(n) if n > 1 else None
+        self._pool = concurrent.futures.ThreadPoolExecutor(n - 1) if n > 1 else None
         self._lock = threading.Lock()  # one batch at a time: the workers are shared
 
     def for_model(self, mj_model):
@@ -217,7 +229,8 @@ class NativeEngine(Engine):
                 parts = [range(size * k // self.n_threads, size * (k + 1) // self.n_threads)
                          for k in range(self.n_threads)]
                 jobs = [self._pool.submit(w.run, r, ins, outs, self.slots, per_robot_model)
-                        for w, r in zip(self._workers, parts) if len(r)]
+                        for w, r in zip(self._workers[1:], parts[1:]) if len(r)]
+                self._workers[0].run(parts[0], ins, outs, self.slots, per_robot_model)  # this thread takes a part
                 for j in jobs:
                     j.result()
         return y.astype(dtype).reshape(batch + (y.shape[1],))

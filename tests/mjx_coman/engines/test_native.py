@@ -53,6 +53,19 @@ def test_bad_engine_choices_name_the_value():
     assert ENGINES == ("mjx", "native")
 
 
+def test_the_default_thread_count_is_the_cores_or_the_environments(monkeypatch):
+    from mjx_coman.engines import native
+
+    monkeypatch.delenv(native.THREADS_ENV, raising=False)
+    cores = native.default_threads()
+    assert cores >= 1
+    monkeypatch.setenv(native.THREADS_ENV, "3")
+    assert native.default_threads() == 3
+    monkeypatch.setenv(native.THREADS_ENV, "zero")
+    with pytest.raises(ValueError, match="COMAN_NATIVE_THREADS='zero'"):
+        native.default_threads()
+
+
 def test_use_engine_refuses_another_scenes_model(params):
     from mjx_coman.scenarios.terrain import scene_model
 
