@@ -53,7 +53,22 @@ class ContactSlots(NamedTuple):
     dim: np.ndarray  # (n,)
     nefc: int
     efc_rows: int  # constraint rows of each slot (pyramid: 2 (dim - 1))
-    by_pair: dict  # (geom1, geom2) -> slot indices, in order
+    pair_index: np.ndarray  # (ngeom, ngeom): the row of pair_slots of a geom pair, -1 if MJX does not collide it
+    pair_slots: np.ndarray  # (pairs, most slots of a pair): each pair's slot indices in order, -1 padded
+
+    @classmethod
+    def of(cls, geom: np.ndarray, efc_address: np.ndarray, dim: np.ndarray, nefc: int, ngeom: int) -> "ContactSlots":
+        """The layout of slots with these geom pairs ``(n, 2)``, first constraint rows and dimensions."""
+        by_pair: dict = {}
+        for s, (g1, g2) in enumerate(np.asarray(geom).tolist()):
+            by_pair.setdefault((g1, g2), []).append(s)
+        pair_index = np.full((ngeom, ngeom), -1, np.int64)
+        pair_slots = np.full((max(len(by_pair), 1), max(map(len, by_pair.values()), default=1)), -1, np.int64)
+        for p, ((g1, g2), slots) in enumerate(by_pair.items()):
+            pair_index[g1, g2] = p
+            pair_slots[p, :len(slots)] = slots
+        return cls(np.asarray(geom), np.asarray(efc_address), np.asarray(dim), nefc, _rows(int(np.asarray(dim)[0])),
+                   pair_index, pair_slots)
 
 
 def contact_slots(mj_model: mujoco.MjModel) -> ContactSlots:
@@ -69,11 +84,8 @@ def contact_slots(mj_model: mujoco.MjModel) -> ContactSlots:
     dims = set(np.asarray(dim).tolist())
     if len(dims) != 1 or np.any(np.asarray(addr) < 0):
         raise ValueError(f"contact dimensions {sorted(dims)}: the native engine needs one condim for every pair")
-    by_pair: dict = {}
-    for s, (g1, g2) in enumerate(np.asarray(geom).tolist()):
-        by_pair.setdefault((g1, g2), []).append(s)
-    return ContactSlots(np.asarray(geom), np.asarray(addr), np.asarray(dim), int(np.shape(efc)[0]),
-                        _rows(dims.pop()), by_pair)
+    return ContactSlots.of(np.asarray(geom), np.asarray(addr), np.asarray(dim), int(np.shape(efc)[0]),
+                           mj_model.ngeom)
 
 
 def _rows(condim: int) -> int:
@@ -113,13 +125,14 @@ class _Worker:
             getattr(self.m, name)[...] = ins[name][i]
         self.m.opt.gravity[:] = ins["gravity"][i]
 
-    def run(self, rows: range, ins: dict, outs: dict, slots: ContactSlots, per_robot_model: bool) -> None:
+    def run(self, rows: range, ins: dict, outs: dict, raw: "_RawContacts", per_robot_model: bool) -> None:
         m, d = self.m, self.d
         if not per_robot_model and len(rows):
             self.set_model(ins, rows[0])
         # views of the data's buffers, bound once per batch
         into = [(getattr(d, k), ins[k]) for k in ("qpos", "qvel", "ctrl", "xfrc_applied", "qacc_warmstart")]
         out = [(getattr(d, k).reshape(outs[k].shape[1:]), outs[k]) for k in OUT_FIELDS]
+        cap, efc_cap = raw.geom.shape[1], raw.efc_force.shape[1]
         for i in rows:
             if per_robot_model:
                 self.set_model(ins, i)
@@ -128,35 +141,87 @@ class _Worker:
             mujoco.mj_step(m, d)
             for src, dst in out:
                 dst[i] = src
-            self._contacts(i, outs, slots)
+            n = d.ncon
+            if n == 0:
+                continue
+            if n > cap or d.nefc > efc_cap:
+                raw.overflow[i] = True  # decoded from a copy of this robot's data after the batch
+                raw.spill[i] = _spill(d)
+                continue
+            raw.ncon[i] = n
+            c = d.contact
+            raw.geom[i, :n] = c.geom
+            raw.pos[i, :n] = c.pos
+            raw.frame[i, :n] = c.frame
+            raw.dist[i, :n] = c.dist
+            raw.friction[i, :n] = c.friction
+            raw.efc_address[i, :n] = c.efc_address
+            raw.efc_force[i, :d.nefc] = d.efc_force
 
-    def _contacts(self, i: int, outs: dict, slots: ContactSlots) -> None:
-        d = self.d
-        outs["dist"][i] = EMPTY_SLOT_DIST_M
-        for k in ("pos", "frame", "friction", "efc_force"):
-            outs[k][i] = 0.0
-        if d.ncon == 0:
-            return
-        c = d.contact
-        used: dict = {}
-        src, dst = [], []
-        for j, (g1, g2) in enumerate(c.geom.tolist()):
-            free = slots.by_pair.get((g1, g2), ())
-            k = used.get((g1, g2), 0)
-            if k < len(free):  # else a pair MJX does not collide, or more contacts than its slots
-                used[(g1, g2)] = k + 1
-                src.append(j)
-                dst.append(free[k])
-        if not src:
-            return
-        outs["pos"][i, dst] = c.pos[src]
-        outs["frame"][i, dst] = c.frame[src].reshape(-1, 3, 3)
-        outs["dist"][i, dst] = c.dist[src]
-        outs["friction"][i, dst] = c.friction[src]
-        addr = c.efc_address[src]
-        rows = np.arange(slots.efc_rows)
-        live = addr >= 0
-        outs["efc_force"][i, slots.efc_address[dst][live][:, None] + rows] = d.efc_force[addr[live][:, None] + rows]
+
+class _RawContacts(NamedTuple):
+    """A batch's C contacts as stepped (the first ``ncon[i]`` rows of robot ``i``), before slot assignment."""
+
+    ncon: np.ndarray  # (B,)
+    geom: np.ndarray  # (B, cap, 2)
+    pos: np.ndarray  # (B, cap, 3)
+    frame: np.ndarray  # (B, cap, 9)
+    dist: np.ndarray  # (B, cap)
+    friction: np.ndarray  # (B, cap, 5)
+    efc_address: np.ndarray  # (B, cap)
+    efc_force: np.ndarray  # (B, efc_cap)
+    overflow: np.ndarray  # (B,) more contacts or constraint rows than the buffers hold: see ``spill``
+    spill: dict  # robot -> its contacts and constraint forces, copied whole
+
+    @classmethod
+    def empty(cls, batch: int, cap: int, efc_cap: int) -> "_RawContacts":
+        z = lambda *shape, dtype=np.float64: np.zeros((batch, *shape), dtype)  # noqa: E731
+        return cls(z(dtype=np.int64), z(cap, 2, dtype=np.int64), z(cap, 3), z(cap, 9), z(cap), z(cap, 5),
+                   z(cap, dtype=np.int64), z(efc_cap), z(dtype=bool), {})
+
+
+def _spill(d: mujoco.MjData) -> dict:
+    c = d.contact
+    return dict(geom=c.geom.copy(), pos=c.pos.copy(), frame=c.frame.copy(), dist=c.dist.copy(),
+                friction=c.friction.copy(), efc_address=c.efc_address.copy(), efc_force=d.efc_force.copy())
+
+
+def decode_contacts(raw: _RawContacts, outs: dict, slots: ContactSlots) -> None:
+    """Write the batch's C contacts into MJX's slots (``outs``: ``pos``, ``frame``, ``dist``, ``friction``,
+    ``efc_force``), all robots at once: contact ``j`` of a robot fills the next free slot of its geom pair, in
+    C's order; a pair MJX does not collide, or more contacts of a pair than its slots, is dropped."""
+    outs["dist"][...] = EMPTY_SLOT_DIST_M
+    for k in ("pos", "frame", "friction", "efc_force"):
+        outs[k][...] = 0.0
+    for i, sp in raw.spill.items():  # robots past the buffers' capacity
+        one = _RawContacts(np.asarray([len(sp["dist"])]), *(sp[k][None] for k in ("geom", "pos")),
+                           sp["frame"].reshape(1, -1, 9), *(sp[k][None] for k in ("dist", "friction", "efc_address",
+                                                                                  "efc_force")),
+                           np.zeros(1, bool), {})
+        _scatter(one, {k: outs[k][i:i + 1] for k in ("pos", "frame", "dist", "friction", "efc_force")}, slots)
+    _scatter(raw, outs, slots)
+
+
+def _scatter(raw: _RawContacts, outs: dict, slots: ContactSlots) -> None:
+    cap = raw.geom.shape[1]
+    live = np.arange(cap)[None, :] < raw.ncon[:, None]  # (B, cap)
+    g = np.where(live[..., None], raw.geom, 0)
+    pair = np.where(live, slots.pair_index[g[..., 0], g[..., 1]], -1)  # -1: a pair MJX does not collide
+    earlier = (pair[:, :, None] == pair[:, None, :]) & np.tri(cap, k=-1, dtype=bool)[None]
+    rank = earlier.sum(-1)  # this contact's place among its pair's, in C's order
+    ok = (pair >= 0) & (rank < slots.pair_slots.shape[1])
+    slot = np.where(ok, slots.pair_slots[np.maximum(pair, 0), np.minimum(rank, slots.pair_slots.shape[1] - 1)], -1)
+    b, j = np.nonzero(slot >= 0)
+    s = slot[b, j]
+    outs["pos"][b, s] = raw.pos[b, j]
+    outs["frame"][b, s] = raw.frame[b, j].reshape(-1, 3, 3)
+    outs["dist"][b, s] = raw.dist[b, j]
+    outs["friction"][b, s] = raw.friction[b, j]
+    addr = raw.efc_address[b, j]
+    keep = addr >= 0
+    rows = np.arange(slots.efc_rows)
+    b, s, addr = b[keep], s[keep], addr[keep]
+    outs["efc_force"][b[:, None], slots.efc_address[s][:, None] + rows] = raw.efc_force[b[:, None], addr[:, None] + rows]
 
 
 class NativeEngine(Engine):
@@ -222,17 +287,20 @@ class NativeEngine(Engine):
             hi = lo + math.prod(shape)
             outs[name] = y[:, lo:hi].reshape((size,) + shape)
             lo = hi
+        cap = 2 * len(self.slots.dim) + 8  # C's contacts a robot keeps in the batch's buffers (more: spilled)
+        raw = _RawContacts.empty(size, cap, cap * self.slots.efc_rows + 2 * self.mj_model.nv + 64)
         with self._lock:
             if self._pool is None or size < 2:
-                self._workers[0].run(range(size), ins, outs, self.slots, per_robot_model)
+                self._workers[0].run(range(size), ins, outs, raw, per_robot_model)
             else:
                 parts = [range(size * k // self.n_threads, size * (k + 1) // self.n_threads)
                          for k in range(self.n_threads)]
-                jobs = [self._pool.submit(w.run, r, ins, outs, self.slots, per_robot_model)
+                jobs = [self._pool.submit(w.run, r, ins, outs, raw, per_robot_model)
                         for w, r in zip(self._workers[1:], parts[1:]) if len(r)]
-                self._workers[0].run(parts[0], ins, outs, self.slots, per_robot_model)  # this thread takes a part
+                self._workers[0].run(parts[0], ins, outs, raw, per_robot_model)  # this thread takes a part
                 for j in jobs:
                     j.result()
+        decode_contacts(raw, outs, self.slots)
         return y.astype(dtype).reshape(batch + (y.shape[1],))
 
     def step(self, model, data):

@@ -100,6 +100,41 @@ def test_a_step_is_mj_step_and_the_contacts_decode_to_mujocos_forces(params, jit
     assert 0.8 * weight < force[2] < 1.2 * weight
 
 
+def test_contacts_fill_their_pairs_slots_in_c_order_for_the_whole_batch_at_once():
+    """The batched decode: a pair's contacts take its slots in C's order, a contact past its pair's slots or of
+    a pair MJX does not collide is dropped, a contact without constraint rows leaves its slot's forces zero, a
+    robot without contacts has empty slots, and a robot spilled past the buffers decodes the same."""
+    from mjx_coman.engines.native import EMPTY_SLOT_DIST_M, ContactSlots, _RawContacts, decode_contacts
+
+    slots = ContactSlots.of(np.asarray([[0, 1], [0, 1], [0, 2]]), np.asarray([10, 14, 18]), np.full(3, 3), 22, 3)
+    geom = np.asarray([[0, 2], [0, 1], [0, 1], [1, 2], [0, 1]])  # C's order
+    addr = np.asarray([5, -1, 9, 13, 17])
+    one = dict(geom=geom, pos=np.arange(15.0).reshape(5, 3), frame=np.arange(45.0).reshape(5, 9) + 100,
+               dist=-np.arange(1.0, 6.0) / 1000, friction=np.arange(25.0).reshape(5, 5) + 200, efc_address=addr,
+               efc_force=np.arange(30.0) + 1000)
+    raw = _RawContacts.empty(3, 5, 30)
+    raw.ncon[0] = 5
+    for k, v in one.items():
+        getattr(raw, k)[0, :len(v)] = v
+    raw.overflow[2] = True
+    raw.spill[2] = one
+    outs = dict(pos=np.full((3, 3, 3), 9.0), frame=np.full((3, 3, 3, 3), 9.0), dist=np.zeros((3, 3)),
+                friction=np.full((3, 3, 5), 9.0), efc_force=np.full((3, 22), 9.0))
+    decode_contacts(raw, outs, slots)
+    for b in (0, 2):
+        np.testing.assert_array_equal(outs["pos"][b], one["pos"][[1, 2, 0]])
+        np.testing.assert_array_equal(outs["frame"][b], one["frame"][[1, 2, 0]].reshape(3, 3, 3))
+        np.testing.assert_array_equal(outs["dist"][b], one["dist"][[1, 2, 0]])
+        np.testing.assert_array_equal(outs["friction"][b], one["friction"][[1, 2, 0]])
+        want = np.zeros(22)
+        want[14:18] = one["efc_force"][9:13]  # slot 1 <- contact 2
+        want[18:22] = one["efc_force"][5:9]  # slot 2 <- contact 0; slot 0's contact has no rows
+        np.testing.assert_array_equal(outs["efc_force"][b], want)
+    np.testing.assert_array_equal(outs["dist"][1], EMPTY_SLOT_DIST_M)
+    for k in ("pos", "frame", "friction", "efc_force"):
+        assert not np.any(outs[k][1]), k
+
+
 def test_the_batch_steps_each_robot_as_alone_on_any_thread_count(params, settled):
     """Three robots with their own velocities and body masses (a per-rollout model field) in one call on 2
     threads give bit for bit what each gives alone on 1 thread."""
