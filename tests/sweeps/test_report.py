@@ -3,8 +3,9 @@
 import numpy as np
 
 from sweeps.grid import SweepConfig
-from sweeps.report import blocks, map_states, phase_rows, pooled, repeat_rows, summarize
-from sweeps.runner import failure_reason
+from sweeps.report import phase_rows, summarize
+from sweeps.rows import blocks, pooled, repeat_rows
+
 
 def test_each_direction_is_summarised_as_its_own_sweep_and_the_pooled_rows_need_every_direction(fake_run):
     cfg = SweepConfig(model="mjx", phases=(0.25, 0.75), impulses_ns=(2.0, 4.0, 6.0),
@@ -40,17 +41,3 @@ def test_a_push_is_recovered_in_the_pooled_map_only_if_every_repeat_recovered_it
     s = summarize(run)
     assert [r["per_phase"][0]["recovered_up_to_ns"] for r in s["per_direction"]] == [1.0, 1.0]
     assert [r["per_phase"][0]["max_recovered_impulse_ns"] for r in s["per_direction"]] == [3.0, 3.0]
-
-
-def test_a_failed_solve_has_its_own_colour_in_the_pooled_map(fake_run):
-    """Repeat 0 falls above 2 N s; repeat 1 ends by a failed solve at 3 N s: the map says solve failed there."""
-    cfg = SweepConfig(model="mjx", phases=(0.5,), impulses_ns=(1.0, 2.0, 3.0), repeats=2).validate()
-    run = fake_run(cfg, lambda g, i: 2.0)
-    res = dict(run.results)
-    failed = np.zeros(cfg.n_rollouts, bool)
-    failed[cfg.n_per_repeat + 2] = True  # repeat 1, 3 N s (fell there too: a failed solve ends the walk)
-    res["reason"] = failure_reason(res["fell"], res["nan"], failed)
-    assert list(map_states(repeat_rows(cfg, res, 0))) == [0, 0, 1]
-    assert list(map_states(repeat_rows(cfg, res, 1))) == [0, 0, 3]
-    one = pooled(cfg, res)
-    assert list(one["reason"]) == ["", "", "solve_failed"] and list(map_states(one)) == [0, 0, 3]
