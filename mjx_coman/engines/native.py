@@ -144,19 +144,11 @@ class _Worker:
             n = d.ncon
             if n == 0:
                 continue
-            if n > cap or d.nefc > efc_cap:
-                raw.overflow[i] = True  # decoded from a copy of this robot's data after the batch
-                raw.spill[i] = _spill(d)
-                continue
-            raw.ncon[i] = n
-            c = d.contact
-            raw.geom[i, :n] = c.geom
-            raw.pos[i, :n] = c.pos
-            raw.frame[i, :n] = c.frame
-            raw.dist[i, :n] = c.dist
-            raw.friction[i, :n] = c.friction
-            raw.efc_address[i, :n] = c.efc_address
-            raw.efc_force[i, :d.nefc] = d.efc_force
+            if n > cap or d.nefc > efc_cap:  # decoded from a buffer of its own after the batch
+                raw.spill[i] = _RawContacts.empty(1, n, d.nefc)
+                _copy_contacts(raw.spill[i], 0, d)
+            else:
+                _copy_contacts(raw, i, d)
 
 
 class _RawContacts(NamedTuple):
@@ -170,20 +162,26 @@ class _RawContacts(NamedTuple):
     friction: np.ndarray  # (B, cap, 5)
     efc_address: np.ndarray  # (B, cap)
     efc_force: np.ndarray  # (B, efc_cap)
-    overflow: np.ndarray  # (B,) more contacts or constraint rows than the buffers hold: see ``spill``
-    spill: dict  # robot -> its contacts and constraint forces, copied whole
+    spill: dict  # robot -> a one-robot _RawContacts of its own: more contacts or rows than these buffers hold
 
     @classmethod
     def empty(cls, batch: int, cap: int, efc_cap: int) -> "_RawContacts":
         z = lambda *shape, dtype=np.float64: np.zeros((batch, *shape), dtype)  # noqa: E731
         return cls(z(dtype=np.int64), z(cap, 2, dtype=np.int64), z(cap, 3), z(cap, 9), z(cap), z(cap, 5),
-                   z(cap, dtype=np.int64), z(efc_cap), z(dtype=bool), {})
+                   z(cap, dtype=np.int64), z(efc_cap), {})
 
 
-def _spill(d: mujoco.MjData) -> dict:
-    c = d.contact
-    return dict(geom=c.geom.copy(), pos=c.pos.copy(), frame=c.frame.copy(), dist=c.dist.copy(),
-                friction=c.friction.copy(), efc_address=c.efc_address.copy(), efc_force=d.efc_force.copy())
+def _copy_contacts(raw: _RawContacts, i: int, d: mujoco.MjData) -> None:
+    """Robot ``i``'s rows of ``raw`` from the contacts and constraint forces of ``d`` (which must fit)."""
+    n, c = d.ncon, d.contact
+    raw.ncon[i] = n
+    raw.geom[i, :n] = c.geom
+    raw.pos[i, :n] = c.pos
+    raw.frame[i, :n] = c.frame
+    raw.dist[i, :n] = c.dist
+    raw.friction[i, :n] = c.friction
+    raw.efc_address[i, :n] = c.efc_address
+    raw.efc_force[i, :d.nefc] = d.efc_force
 
 
 def decode_contacts(raw: _RawContacts, outs: dict, slots: ContactSlots) -> None:
@@ -193,11 +191,7 @@ def decode_contacts(raw: _RawContacts, outs: dict, slots: ContactSlots) -> None:
     outs["dist"][...] = EMPTY_SLOT_DIST_M
     for k in ("pos", "frame", "friction", "efc_force"):
         outs[k][...] = 0.0
-    for i, sp in raw.spill.items():  # robots past the buffers' capacity
-        one = _RawContacts(np.asarray([len(sp["dist"])]), *(sp[k][None] for k in ("geom", "pos")),
-                           sp["frame"].reshape(1, -1, 9), *(sp[k][None] for k in ("dist", "friction", "efc_address",
-                                                                                  "efc_force")),
-                           np.zeros(1, bool), {})
+    for i, one in raw.spill.items():  # robots past the buffers' capacity
         _scatter(one, {k: outs[k][i:i + 1] for k in ("pos", "frame", "dist", "friction", "efc_force")}, slots)
     _scatter(raw, outs, slots)
 
@@ -244,6 +238,9 @@ class NativeEngine(Engine):
         self.mj_model = mj_model.__copy__()
         self.n_threads = n
         self.slots = contact_slots(self.mj_model)
+        # C's contacts (and constraint rows) a robot keeps in a batch's buffers; a robot with more is spilled
+        self.contact_cap = 2 * len(self.slots.dim) + 8
+        self.efc_cap = self.contact_cap * self.slots.efc_rows + 2 * self.mj_model.nv + 64
         self._workers = [_Worker(self.mj_model) for _ in range(n)]
         self._pool = concurrent.futures.ThreadPoolExecutor(n - 1) if n > 1 else None
         self._lock = threading.Lock()  # one batch at a time: the workers are shared
@@ -287,8 +284,7 @@ class NativeEngine(Engine):
             hi = lo + math.prod(shape)
             outs[name] = y[:, lo:hi].reshape((size,) + shape)
             lo = hi
-        cap = 2 * len(self.slots.dim) + 8  # C's contacts a robot keeps in the batch's buffers (more: spilled)
-        raw = _RawContacts.empty(size, cap, cap * self.slots.efc_rows + 2 * self.mj_model.nv + 64)
+        raw = _RawContacts.empty(size, self.contact_cap, self.efc_cap)
         with self._lock:
             if self._pool is None or size < 2:
                 self._workers[0].run(range(size), ins, outs, raw, per_robot_model)

@@ -112,12 +112,12 @@ def test_contacts_fill_their_pairs_slots_in_c_order_for_the_whole_batch_at_once(
     one = dict(geom=geom, pos=np.arange(15.0).reshape(5, 3), frame=np.arange(45.0).reshape(5, 9) + 100,
                dist=-np.arange(1.0, 6.0) / 1000, friction=np.arange(25.0).reshape(5, 5) + 200, efc_address=addr,
                efc_force=np.arange(30.0) + 1000)
-    raw = _RawContacts.empty(3, 5, 30)
-    raw.ncon[0] = 5
-    for k, v in one.items():
-        getattr(raw, k)[0, :len(v)] = v
-    raw.overflow[2] = True
-    raw.spill[2] = one
+    raw, alone = _RawContacts.empty(3, 5, 30), _RawContacts.empty(1, 5, 30)
+    for buf in (raw, alone):
+        buf.ncon[0] = 5
+        for k, v in one.items():
+            getattr(buf, k)[0, :len(v)] = v
+    raw.spill[2] = alone
     outs = dict(pos=np.full((3, 3, 3), 9.0), frame=np.full((3, 3, 3, 3), 9.0), dist=np.zeros((3, 3)),
                 friction=np.full((3, 3, 5), 9.0), efc_force=np.full((3, 22), 9.0))
     decode_contacts(raw, outs, slots)
@@ -133,6 +133,26 @@ def test_contacts_fill_their_pairs_slots_in_c_order_for_the_whole_batch_at_once(
     np.testing.assert_array_equal(outs["dist"][1], EMPTY_SLOT_DIST_M)
     for k in ("pos", "frame", "friction", "efc_force"):
         assert not np.any(outs[k][1]), k
+
+
+def test_a_robot_past_the_contact_buffers_steps_the_same(params, settled):
+    """With buffers of one contact, every standing robot (4 or more foot contacts) is spilled and decoded from
+    a buffer of its own: the packed outputs equal those of the normal path bit for bit."""
+    engine = NativeEngine(params.engine.mj_model, n_threads=1)
+    m = engine.mj_model
+    c = mujoco.MjData(m)
+    c.qpos[:], c.qvel[:] = np.asarray(settled.qpos, np.float64), np.asarray(settled.qvel, np.float64)
+    mujoco.mj_step(m, c)
+    assert c.ncon >= 2
+    row = np.concatenate([np.ravel(m.opt.gravity if name == "gravity" else getattr(m if name in MODEL_FIELDS else c,
+                                                                                  name))
+                          for name, _ in engine._layout[0]])
+    x = np.stack([row, row])
+    normal = engine._host_step(x)
+    engine.contact_cap = 1
+    spilled = engine._host_step(x)
+    np.testing.assert_array_equal(spilled, normal)
+    assert np.any(normal[:, -engine.slots.nefc:])  # the contacts carry force
 
 
 def test_the_batch_steps_each_robot_as_alone_on_any_thread_count(params, settled):
