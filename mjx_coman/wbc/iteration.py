@@ -40,8 +40,9 @@ def kkt_measure(Q, q, A, b, G, h, x, z, y) -> jax.Array:
 
 
 def _factor(M):
-    """Cholesky factor of ``M + eps * max(diag M) I`` (finite where rounding leaves ``M`` numerically singular)."""
-    shift = jnp.finfo(M.dtype).eps * jnp.max(jnp.diag(M))
+    """Cholesky factor of ``M + eps * max(diag M) I`` (finite where rounding leaves ``M`` numerically singular;
+    ``M`` may be 0 x 0: a problem without equality rows)."""
+    shift = jnp.finfo(M.dtype).eps * jnp.max(jnp.diag(M), initial=0.0)
     return jax.scipy.linalg.cho_factor(M + shift * jnp.eye(M.shape[0], dtype=M.dtype))
 
 

@@ -113,6 +113,18 @@ def test_a_zero_equality_row_is_solved_where_qpaxs_starting_point_is_not_finite(
     assert abs(_cost(qp, x) - _cost(qp, xr)) < 1e-5 * (1 + abs(_cost(qp, xr)))  # measured 3e-9
 
 
+def test_a_problem_without_equality_rows_is_solved():
+    """No equality rows (footstep MPC's qpax planner: a 0 x 0 Schur complement): min |x - (2, 2)|^2 over
+    x1 + x2 <= 1 and x >= 0 is (0.5, 0.5), as proxsuite says."""
+    f = jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
+    qp = (jnp.eye(2, dtype=f) * 2, jnp.asarray([-4.0, -4.0], f), jnp.zeros((0, 2), f), jnp.zeros((0,), f),
+          jnp.asarray([[1.0, 1.0], [-1.0, 0.0], [0.0, -1.0]], f), jnp.asarray([1.0, 0.0, 0.0], f))
+    x, s, z, y, conv, k = jax.jit(iteration.solve, static_argnums=(6, 7))(*qp, 1e-6, 30)
+    assert bool(conv) and y.shape == (0,)
+    np.testing.assert_allclose(np.asarray(x), [0.5, 0.5], atol=1e-4)
+    np.testing.assert_allclose(np.asarray(x), _reference(qp), atol=1e-4)
+
+
 def test_steps_are_qpaxs_up_to_rounding_and_the_lowest_measure_iterate_is_returned():
     """float64, no stop (tol 0): the result is the lowest-measure one of qpax's own iterates 0..k (the refined
     factorization changes float64 steps only by rounding)."""
