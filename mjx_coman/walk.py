@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="payload CoM from the body's CoM, body frame, m (seed 001: -0.01,0,0, 1 cm back)")
     g.add_argument("--slope-deg", type=float, default=0.0, help="floor slope, + uphill in the walking direction, deg")
     g.add_argument("--terrain", default="flat", metavar="flat|rough:CM[:SEED]|stairs:CM",
-                   help="ground: flat, rough (+-CM cm height field) or stairs (CM cm risers, up in +x)")
+                   help="ground: flat, rough (+-CM cm height field) or stairs (CM cm risers, up in +x; -CM: down)")
     g.add_argument("--imu-noise-deg", type=float, default=None, help="std of the IMU orientation noise, deg "
                                                                      "(default: COMAN's nominal 0.11)")
     g.add_argument("--joint-noise-deg", type=float, default=None, help="std of the link encoder noise, deg (default 0)")

@@ -21,6 +21,10 @@ new ``MjModel`` and a new compilation):
   sole and room to place it; seed 004 walks 19.7 cm stairs on Atlas, whose
   legs are about twice COMAN's), then a 2 m landing; 2 m wide. Each step is
   a box, on the floor plane, which keeps its contacts.
+* ``stairs:-CM``: the same staircase going down in +x: the robot starts on a
+  platform (a box, top at ``z = 0``, from ``x = -2``) whose edge is the
+  first drop, each tread CM cm lower, the last drop onto the floor plane,
+  lowered to ``-STAIR_STEPS * CM`` cm.
 
 The foot spheres collide with the terrain through explicit ``<pair>``
 elements, as with the floor: MJX implements ``hfield``-``sphere`` (up to 4
@@ -78,11 +82,11 @@ class Terrain(NamedTuple):
 
 
 def parse_terrain(text: str) -> Terrain:
-    """``flat``, ``rough:CM[:SEED]`` or ``stairs:CM``.
+    """``flat``, ``rough:CM[:SEED]`` or ``stairs:CM`` (``CM < 0``: down).
 
     Raises:
         ValueError: naming the bad value (unknown kind, a height outside (0, 10] cm for rough or
-            (0, 20] cm for stairs, a seed that is not a whole number in [0, 2**32)).
+            [-20, 0) or (0, 20] cm for stairs, a seed that is not a whole number in [0, 2**32)).
     """
     t = str(text).strip()
     parts = t.split(":")
@@ -96,7 +100,11 @@ def parse_terrain(text: str) -> Terrain:
     except ValueError:
         raise ValueError(f"terrain {t!r}: the height {parts[1]!r} is not a number of cm") from None
     top = MAX_ROUGH_CM if kind == "rough" else MAX_STAIR_CM
-    if not (math.isfinite(cm) and 0 < cm <= top):
+    if kind == "stairs" and math.isfinite(cm) and cm != 0 and abs(cm) <= top:
+        pass
+    elif kind == "stairs":
+        raise ValueError(f"terrain {t!r}: the riser must lie in [-{top:g}, 0) or (0, {top:g}] cm, got {parts[1]}")
+    elif not (math.isfinite(cm) and 0 < cm <= top):
         raise ValueError(f"terrain {t!r}: the height must lie in (0, {top:g}] cm, got {parts[1]}")
     seed = 0
     if len(parts) == 3:
@@ -136,14 +144,27 @@ def rough_heights_m(terrain: Terrain) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return _rough_grid(float(terrain.height_m), int(terrain.seed))
 
 
+def stair_floor_m(terrain: Terrain) -> float:
+    """Height of the floor plane under a staircase: 0 going up, the bottom of the last drop going down."""
+    return min(0.0, STAIR_STEPS * terrain.height_m)
+
+
 def stair_boxes(terrain: Terrain) -> list[tuple[float, float, float]]:
-    """``(x_start, x_end, top)`` of each step box, m."""
+    """``(x_start, x_end, top)`` of each box standing on the floor plane, m: the steps going up; going down the
+    start platform (from ``x = -2``) and the treads above the floor."""
     h, t, x0 = terrain.height_m, STAIR_TREAD_M, STAIR_START_X_M
+    if h < 0:
+        return [(-2.0, x0, 0.0)] + [(x0 + (k - 1) * t, x0 + k * t, k * h) for k in range(1, STAIR_STEPS)]
     out = []
     for k in range(STAIR_STEPS):
         end = x0 + (k + 1) * t if k < STAIR_STEPS - 1 else x0 + k * t + STAIR_LANDING_M
         out.append((x0 + k * t, end, (k + 1) * h))
     return out
+
+
+def stair_edges(terrain: Terrain) -> tuple[tuple[float, float], ...]:
+    """``(x, rise)`` of each stair edge, in +x: the height change there, m (> 0 up, < 0 down)."""
+    return tuple((STAIR_START_X_M + k * STAIR_TREAD_M, terrain.height_m) for k in range(STAIR_STEPS))
 
 
 def scene_parts(terrain: Terrain) -> dict:
@@ -153,11 +174,14 @@ def scene_parts(terrain: Terrain) -> dict:
         return {}
     if terrain.kind == "stairs":
         geoms, names = [], []
+        floor = stair_floor_m(terrain)
         for k, (a, b, top) in enumerate(stair_boxes(terrain)):
             names.append(f"stair_{k}")
-            geoms.append(f'<geom name="stair_{k}" type="box" size="{f((b - a) / 2)} {f(STAIR_HALF_WIDTH_M)} {f(top / 2)}" '
-                         f'pos="{f((a + b) / 2)} 0 {f(top / 2)}" contype="0" conaffinity="0" rgba="0.7 0.7 0.65 1"/>')
-        return dict(terrain_geoms=tuple(geoms), contact_geoms=tuple(names))
+            half = (top - floor) / 2
+            geoms.append(f'<geom name="stair_{k}" type="box" size="{f((b - a) / 2)} {f(STAIR_HALF_WIDTH_M)} {f(half)}" '
+                         f'pos="{f((a + b) / 2)} 0 {f(floor + half)}" contype="0" conaffinity="0" '
+                         f'rgba="0.7 0.7 0.65 1"/>')
+        return dict(terrain_geoms=tuple(geoms), contact_geoms=tuple(names), floor_z_m=floor)
     xs, ys, _ = rough_heights_m(terrain)
     h = terrain.height_m
     rx, ry = (xs[-1] - xs[0]) / 2, (ys[-1] - ys[0]) / 2
@@ -195,7 +219,7 @@ def scene_model(terrain: str = "flat") -> mujoco.MjModel:
 def terrain_height_m(terrain: str, x, y):
     """Ground height under the points ``(x, y)``, m (jnp; ``0.0`` for ``flat``).
 
-    Stairs: the top of the step box under the point. Rough: bilinear interpolation of the height field's
+    Stairs: the top of the step box under the point, else the floor. Rough: bilinear interpolation of the height field's
     samples (MuJoCo triangulates each cell; the two differ by well under a millimetre on these fields).
     """
     t = parse_terrain(terrain)
@@ -203,7 +227,7 @@ def terrain_height_m(terrain: str, x, y):
         return 0.0
     x, y = jnp.asarray(x), jnp.asarray(y)
     if t.kind == "stairs":
-        z = jnp.zeros_like(x)
+        z = jnp.full_like(x, stair_floor_m(t))
         for a, b, top in stair_boxes(t):
             z = jnp.where((x >= a) & (x < b) & (jnp.abs(y) <= STAIR_HALF_WIDTH_M), top, z)
         return z

@@ -98,7 +98,7 @@ def test_payload_reaches_mjx_as_in_mujoco_c(mjx_com):
 
 def test_heights_are_mujocos_own_ray_casts():
     rng = np.random.default_rng(0)
-    for terrain in ("rough:5", "rough:2:7", "stairs:5", "stairs:12"):
+    for terrain in ("rough:5", "rough:2:7", "stairs:5", "stairs:12", "stairs:-7"):
         t = sc.parse_terrain(terrain)
         m = sc.scene_model(terrain)
         d = mujoco.MjData(m)
@@ -117,8 +117,10 @@ def test_heights_are_mujocos_own_ray_casts():
             xs, ys, field = T.rough_heights_m(t)
             start = (np.abs(xs)[None, :] <= 0.3) & (np.abs(ys)[:, None] <= 0.25)
             assert np.all(field[start] == 0.0)  # the robot starts on flat ground
-        else:
+        elif t.height_m > 0:
             assert max(ray) == pytest.approx(T.STAIR_STEPS * t.height_m)
+        else:  # down: the start platform at 0, the floor a staircase lower
+            assert max(ray) == pytest.approx(0.0, abs=1e-9) and min(ray) == pytest.approx(T.STAIR_STEPS * t.height_m)
 
 
 def _support_xml(points):
@@ -201,6 +203,7 @@ def test_delay_reaches_the_motor_boards_k_ticks_later():
     (dict(payload_body="Head"), "Head"), (dict(payload_com_m=(0.0, 0.1)), "payload_com_m"),
     (dict(payload_com_m=(0.0, 0.0, 2.0)), "payload_com_m"), (dict(slope_deg=45.0), "slope_deg"),
     (dict(terrain="ice"), "ice"), (dict(terrain="rough:0"), "rough:0"), (dict(terrain="stairs:30"), "stairs:30"),
+    (dict(terrain="stairs:0"), "stairs:0"), (dict(terrain="stairs:-25"), "stairs:-25"),
     (dict(terrain="rough:2:x"), "x"), (dict(imu_noise_deg=-3.0), "imu_noise_deg"),
     (dict(joint_noise_deg=float("inf")), "joint_noise_deg"), (dict(delay_ms=-1.0), "delay_ms"),
     (dict(delay_ms=50.0), "delay_ms"), (dict(slope_deg="5"), "slope_deg"), (dict(actuator="hydraulic"), "hydraulic"),
