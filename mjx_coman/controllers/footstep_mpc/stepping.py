@@ -186,20 +186,22 @@ def sense(config, state: WalkState, obs) -> tuple[WalkState, Sensed]:
 
 
 def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing_duration_s, swing_t_s,
-                   late_down_mps=0.0, ground_z_m=None):
+                   late_down_mps=0.0, ground_z_m=None, lift_fraction=None):
     """Swing-foot (6,) and pelvis-orientation (3,) task accelerations toward the footstep ``next_xy`` (the foot's
     centre) at heading ``yaw_next`` (seed 001, sec. III; eq. 8), and the swing sole's position error, m.
 
     The swing runs from lift-off to ``swing_duration_s``; ``swing_t_s`` is the time into it. Past it, while
     the touchdown is late (``state.late_s``), the foot goes on down at ``late_down_mps`` (seed 004 sec. III-B).
-    The footstep's sole lands at ``ground_z_m`` (a known terrain), else at the stance sole's height."""
+    The footstep's sole lands at ``ground_z_m`` (a known terrain), else at the stance sole's height; with
+    ``lift_fraction`` the foot steps over an edge (:func:`~.trajectory.step_over_reference`)."""
     c = config
     f = c.com_ref_m.dtype
     plant, est = s.tick.plant, s.tick.base
     target_sole = next_xy - rot2(yaw_next) @ jnp.stack([jnp.asarray(MID_FOOT_AHEAD_M, f), jnp.zeros((), f)])
     ground_z = state.anchor_m[s.stance, 2] if ground_z_m is None else ground_z_m
-    ref = tr.swing_foot_reference(swing_t_s, swing_duration_s, state.swing_start_m, target_sole,
-                                  ground_z - c.touchdown_depth_m, c.clearance_m, state.swing_start_quat, yaw_next)
+    args = (swing_t_s, swing_duration_s, state.swing_start_m, target_sole, ground_z - c.touchdown_depth_m,
+            c.clearance_m, state.swing_start_quat, yaw_next)
+    ref = tr.swing_foot_reference(*args) if lift_fraction is None else tr.step_over_reference(*args, lift_fraction)
     down = jnp.asarray([0.0, 0.0, 1.0], f) * late_down_mps
     ref = ref._replace(pos=ref.pos - state.late_s * down, vel=jnp.where(state.late_s > 0, -down, ref.vel))
     sole_vel = plant.sole_jac[s.swing] @ est.qvel  # (6,)
@@ -215,13 +217,16 @@ def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing
     return jnp.concatenate([lin, ang]), base_acc, error
 
 
-def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype, toe_off=None):
+def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype, toe_off=None, qdd_bounds=None):
     """The whole-body QP of ``tasks`` with the stance ``mask`` (fixed upper body held by a joint PD outside it when
     the config says so; the stall torque as bounds; the config's iteration cap, retry and stance-row slack; the
-    feet in ``toe_off``, :mod:`mjx_coman.wbc.contacts`), and its torques ramped in after the reset: ``(qp, tau)``."""
+    feet in ``toe_off``, :mod:`mjx_coman.wbc.contacts`; joint-acceleration bounds ``qdd_bounds``), and its torques
+    ramped in after the reset: ``(qp, tau)``."""
     c = config
     est = s.tick.base
     extra = {} if toe_off is None else {"toe_off": toe_off}
+    if qdd_bounds is not None:
+        extra["qdd_bounds"] = qdd_bounds
     if c.fixed_upper_body:
         extra |= dict(fixed_upper_body=True, upper_acc=torque.upper_body_acc(
             c.posture_rad, est.qpos, est.qvel, c.posture_kp_per_s2, c.posture_kd_per_s))

@@ -161,6 +161,38 @@ def swing_foot_reference(t_s, duration_s, start_pos_m, target_xy_m, ground_z_m, 
     )
 
 
+def step_over_reference(t_s, duration_s, start_pos_m, target_xy_m, ground_z_m, clearance_m, start_quat,
+                        target_yaw_rad, lift_fraction) -> FootReference:
+    """Swing foot over an edge (a stair's riser): up, across, down, for a known terrain.
+
+    With ``a = lift_fraction`` and ``top = max(z0, ground_z) + clearance_m``, the height rises from ``z0`` to
+    ``top`` over the first ``a`` of the swing and falls to ``ground_z`` over the last ``a`` (:func:`blend` each);
+    the horizontal motion and the Slerp run between ``a / 2`` and ``1 - a / 2``, so the foot has risen half way
+    before it moves toward an edge ahead and is past it before it drops. ``lift_fraction = 0`` is a straight
+    line (no clearance): use :func:`swing_foot_reference` on flat ground.
+    """
+    T = duration_s
+    a = lift_fraction * T
+    up, upd, updd = blend(t_s, a)
+    dn, dnd, dndd = blend(t_s - (T - a), a)
+    s, sd, sdd = blend(t_s - 0.5 * a, T - a)
+    start_pos_m = jnp.asarray(start_pos_m)
+    z0 = start_pos_m[2]
+    top = jnp.maximum(z0, ground_z_m) + clearance_m
+    rise, fall = top - z0, ground_z_m - top
+    dxy = jnp.asarray(target_xy_m) - start_pos_m[:2]
+    zero = jnp.zeros_like(up)
+    r = quat_delta(start_quat, yaw_quat(target_yaw_rad))
+    return FootReference(
+        pos=jnp.concatenate([start_pos_m[:2] + s * dxy, jnp.reshape(z0 + up * rise + dn * fall, (1,))]),
+        vel=jnp.concatenate([sd * dxy, jnp.reshape(upd * rise + dnd * fall + zero, (1,))]),
+        acc=jnp.concatenate([sdd * dxy, jnp.reshape(updd * rise + dndd * fall + zero, (1,))]),
+        quat=quat_mul(quat_exp(s * r), start_quat),
+        ang_vel=sd * r,
+        ang_acc=sdd * r,
+    )
+
+
 def base_reference(t_s, duration_s, start_yaw_rad, turn_rad_per_s):
     """Upright base (pelvis) orientation turning by ``turn_rad_per_s * duration_s`` over the step.
 

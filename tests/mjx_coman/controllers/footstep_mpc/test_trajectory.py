@@ -232,6 +232,51 @@ def test_swing_foot_vmaps_jits_and_follows_dtype():
     assert np.isfinite(g) and g != 0.0
 
 
+# --- stepping over an edge --------------------------------------------------------------------------------
+
+LIFT = 0.4  # fraction of the swing rising (and, at the end, dropping)
+
+
+def over(t, start=(0.0, 0.0, 0.0), target=(0.24, 0.02), ground=0.05, quat=TILTED):
+    return tr.step_over_reference(t, T, jnp.asarray(start), jnp.asarray(target), ground, ZCL, quat, 0.4, LIFT)
+
+
+@pytest.mark.parametrize("ground", [0.05, -0.05], ids=["up", "down"])
+def test_step_over_starts_and_ends_at_rest_on_the_two_treads(ground):
+    a, b = over(0.0, ground=ground), over(T, ground=ground)
+    np.testing.assert_allclose(a.pos, 0.0, atol=1e-15)
+    np.testing.assert_allclose(b.pos, [0.24, 0.02, ground], atol=1e-12)
+    assert same_rotation(a.quat, TILTED) and same_rotation(b.quat, tr.yaw_quat(0.4))
+    for v in (a.vel, a.acc, b.vel, b.acc, a.ang_vel, b.ang_vel):
+        np.testing.assert_allclose(v, 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("ground", [0.05, -0.05], ids=["up", "down"])
+def test_step_over_is_above_both_treads_while_it_moves_across(ground):
+    """Up: the foot is half way up before it moves forward; past the middle of the swing it is at the top
+    (both tread heights + the clearance) until it is over the far tread. Down: mirrored in time."""
+    ts = np.linspace(0.0, T, 401)
+    refs = jax.vmap(lambda t: over(t, ground=ground))(jnp.asarray(ts))
+    x, z = np.asarray(refs.pos[:, 0]), np.asarray(refs.pos[:, 2])
+    top = max(0.0, ground) + ZCL
+    assert z.max() == pytest.approx(top, abs=1e-12)
+    moving = ts <= LIFT * T / 2  # before the horizontal motion starts
+    np.testing.assert_allclose(x[moving], 0.0, atol=1e-15)
+    crossing = (ts >= LIFT * T) & (ts <= (1 - LIFT) * T)
+    np.testing.assert_allclose(z[crossing], top, atol=1e-12)
+    assert x[ts >= (1 - LIFT / 2) * T].min() == pytest.approx(0.24, abs=1e-12)  # over the far tread as it drops
+    rising = ts <= LIFT * T
+    assert np.all(np.diff(z[rising]) >= -1e-15)
+
+
+@pytest.mark.parametrize("t", [0.05, 0.12, 0.25, 0.41])
+def test_step_over_derivatives_match_finite_differences(t):
+    ref = over(t)
+    np.testing.assert_allclose(fd(lambda s: over(s).pos, t), ref.vel, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(fd(lambda s: over(s).vel, t), ref.acc, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(fd(lambda s: over(s).ang_vel, t), ref.ang_acc, rtol=1e-6, atol=1e-8)
+
+
 # --- base ------------------------------------------------------------------------------------------------
 
 
