@@ -12,7 +12,9 @@ forces in units of :data:`FORCE_SCALE_N`. Torques are not unknowns: from the act
   per foot, stance acceleration or zero wrench (:func:`mjx_coman.wbc.contacts.contact_equalities`);
 * inequalities: ``tau_min <= tau <= tau_max`` in units of :data:`TORQUE_SCALE_NM`; friction pyramids and
   unilateral (min) normal force per corner in units of FORCE_SCALE_N (which also keeps each CoP in its
-  foot, see :mod:`mjx_coman.wbc.contacts`).
+  foot, see :mod:`mjx_coman.wbc.contacts`); optionally (``qdd_bounds``, static presence) joint-acceleration
+  bounds on the actuated unknowns (seed 004 eq. 5, e.g. from the joint limits: :mod:`mjx_coman.wbc.limits`)
+  in units of :data:`ACC_SCALE`.
 
 The soft tasks (:mod:`mjx_coman.wbc.tasks`) give ``Q = 2 sum R^T W R + eps I`` and ``q = -2 sum R^T W t``
 (``eps``, ``hessian_eps``, keeps ``Q`` positive definite). Scaling keeps rows and unknowns O(1-10):
@@ -44,6 +46,7 @@ from mjx_coman.wbc.tasks import Task
 
 FORCE_SCALE_N = 100.0
 TORQUE_SCALE_NM = 10.0
+ACC_SCALE = 10.0  # rad/s^2 per unit of a joint-acceleration bound row
 DESIGN_FRICTION = 0.7  # below the model's 1.0
 N_SLACK = 12  # stance-row slacks (6 per foot) with contact_slack_weight
 
@@ -80,10 +83,12 @@ def free_joints(nv: int, fixed_upper_body: bool) -> np.ndarray:
 
 
 def problem_size(nv: int = 29, fixed_upper_body: bool = False, n_faces: int = 4,
-                 contact_slack: bool = False) -> dict[str, int]:
+                 contact_slack: bool = False, qdd_bounds: bool = False) -> dict[str, int]:
     """``{variables, equalities, inequalities}`` of the QP (static)."""
-    n = len(free_joints(nv, fixed_upper_body)) + N_FORCES + (N_SLACK if contact_slack else 0)
-    return dict(variables=n, equalities=N_BASE + 12, inequalities=2 * (nv - N_BASE) + 8 * (n_faces + 1))
+    n_q = len(free_joints(nv, fixed_upper_body))
+    n = n_q + N_FORCES + (N_SLACK if contact_slack else 0)
+    bounds = 2 * (n_q - N_BASE) if qdd_bounds else 0
+    return dict(variables=n, equalities=N_BASE + 12, inequalities=2 * (nv - N_BASE) + 8 * (n_faces + 1) + bounds)
 
 
 def _task_rows(task: Task, qdd_map, qdd_offset, force_map):
@@ -100,7 +105,7 @@ def _task_rows(task: Task, qdd_map, qdd_offset, force_map):
 def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_max_nm, *,
              friction_coeff=DESIGN_FRICTION, min_normal_force_n=0.0, hessian_eps=1e-6,
              fixed_upper_body: bool = False, upper_acc=None, n_faces: int = 4, contact_slack_weight=None,
-             toe_off=None) -> QP:
+             toe_off=None, qdd_bounds=None) -> QP:
     """Assemble the whole-body QP of one state (pure; vmap it for a batch).
 
     Args:
@@ -117,6 +122,8 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
             docstring), per (m/s^2)^2.
         toe_off: ``None`` or (2,) 1 for a stance foot on its toe (:mod:`mjx_coman.wbc.contacts`): its heel
             forces are cut and its pitch freed; needs ``contact_slack_weight``. Ignored for a lifted foot.
+        qdd_bounds: ``None`` or ``(lo, hi)``, each (nu,): hard bounds on the actuated joints' accelerations
+            that are unknowns (the legs' with ``fixed_upper_body``), rad/s^2.
 
     Raises:
         ValueError: wrong plant shapes, no tasks, or ``upper_acc`` given or missing against
@@ -172,6 +179,13 @@ def build_qp(plant: Plant, tasks: Sequence[Task], contact_mask, tau_min_nm, tau_
     h = jnp.concatenate([(tmax - tau_offset) / TORQUE_SCALE_NM, (tau_offset - tmin) / TORQUE_SCALE_NM,
                          fr_rhs / FORCE_SCALE_N])
     ineq_scale = jnp.concatenate([jnp.full(2 * nu, TORQUE_SCALE_NM, dt), jnp.full(fr.shape[0], FORCE_SCALE_N, dt)])
+    if qdd_bounds is not None:  # lo <= qdd_j <= hi on the actuated unknowns
+        act = free[N_BASE:]
+        lo, hi = (jnp.broadcast_to(jnp.asarray(a, dt), (nu,))[act - N_BASE] for a in qdd_bounds)
+        rows = qdd_map[act] / ACC_SCALE
+        G = jnp.concatenate([G, rows, -rows])
+        h = jnp.concatenate([h, hi / ACC_SCALE, -lo / ACC_SCALE])
+        ineq_scale = jnp.concatenate([ineq_scale, jnp.full(2 * len(act), ACC_SCALE, dt)])
 
     Q = hessian_eps * jnp.eye(n, dtype=dt)
     if contact_slack_weight is not None:
