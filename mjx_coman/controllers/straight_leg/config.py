@@ -36,6 +36,9 @@ _SHARED_TUNABLE = ("half_width_m", "clearance_m", "touchdown_depth_m", "shift_m"
 
 OWN = (
     Setting("swing_s", 0.42, "single-support (swing) duration, s (module docstring: Atlas's 0.60 s scaled)"),
+    Setting("stairs_swing_s", 0.6, "the swing duration on a stairs terrain (replaces swing_s there): a step "
+            "across a stair edge is at least a sole long, 0.21 m, and lifts the foot over the riser; at 0.42 s "
+            "the swing foot fell short of the tread, s"),
     Setting("transfer_s", 0.18, "double-support (transfer) duration at the start of each step, s (Atlas's 0.25 s "
             "scaled)"),
     Setting("knee_mode", "straight", "straight: the privileged straight knee in the QP's null space, vertical force "
@@ -48,8 +51,19 @@ OWN = (
             "touchdown (F/T contact flags), driving it down (seed 004 sec. III-B)"),
     Setting("terrain", "flat", "the terrain the footsteps are planned on (a --terrain string): their heights, "
             "and on stairs whole treads (:mod:`.foothold`; seed 004 walked stairs on a given plan)"),
-    Setting("stair_heel_overhang_m", 0.05, "on stairs, how far the heel of a footstep on the upper tread may "
-            "overhang the edge, m (:mod:`.foothold`)"),
+    Setting("stair_overhang_m", 0.0, "on stairs, how far a sole may overhang a stair edge: the heel of a footstep "
+            "just past an edge up, the toe of one just before an edge down, m (:mod:`.foothold`)"),
+    Setting("stair_max_step_m", 0.2, "on stairs, the longest step that moves a footstep forward off an edge; a "
+            "longer one moves it back before the edge, m (:mod:`.foothold`)"),
+    Setting("step_over_fraction", 0.4, "on a known non-flat terrain the swing foot steps over edges: it rises to "
+            "clearance_m above the higher of its lift-off and landing heights over this fraction of the swing, "
+            "moves across, and drops over the last fraction (footstep_mpc.trajectory.step_over_reference)", True,
+            (0.05, 0.45)),
+    Setting("joint_limit_horizon_s", 0.05, "joint-acceleration bounds (seed 004 eq. 5): no joint may cross its "
+            "position limit within this time at a constant acceleration, s (mjx_coman.wbc.limits)", True,
+            (0.005, 1.0)),
+    Setting("joint_limit_max_acc", 500.0, "the joint-limit bounds are clipped to +- this, rad/s^2", True,
+            (1.0, None)),
     Setting("n_steps", 4, "footsteps the ICP plan looks ahead (static)"),
     Setting("momentum_weight", 0.12, "weight of the linear x-y momentum-rate rows (seed 004 eq. 6, 8), 1/N^2 "
             "(0.12: about footstep-mpc's CoM weight of 100 per (m/s^2)^2 on COMAN's 28.9 kg)", True, (0.0, None)),
@@ -205,15 +219,19 @@ def make_config(**settings) -> Config:
         hi = v["qp_max_iter"] - 1 if hi is None else hi  # the retry stops before the full solve
         if isinstance(v[name], bool) or not isinstance(v[name], int) or not lo <= v[name] <= hi:
             raise ValueError(f"{name}={v[name]!r} must be a whole number in [{lo}, {hi}]")
+    if not isinstance(v["terrain"], str):
+        raise ValueError(f"terrain={v['terrain']!r} must be a terrain string (flat, rough:CM[:SEED], stairs:CM)")
+    v["terrain"] = parse_terrain(v["terrain"]).text  # raises ValueError naming a bad one
+    v["stairs_swing_s"] = _ticks("stairs_swing_s", fmpc.number_in("stairs_swing_s", v["stairs_swing_s"], 0.1, 2.0))
+    if parse_terrain(v["terrain"]).kind == "stairs":
+        v["swing_s"] = v["stairs_swing_s"]
     v["swing_s"] = _ticks("swing_s", fmpc.number_in("swing_s", v["swing_s"], 0.1, 2.0))
     v["transfer_s"] = _ticks("transfer_s", fmpc.number_in("transfer_s", v["transfer_s"], 0.0, 1.0))
     if v["transfer_s"] >= v["swing_s"] + v["transfer_s"] or v["transfer_s"] >= v["swing_s"]:
         raise ValueError(f"transfer_s={v['transfer_s']!r} must be shorter than swing_s={v['swing_s']!r}")
     v["start_s"] = fmpc.number_in("start_s", v["start_s"], 0.0, 5.0)
-    v["stair_heel_overhang_m"] = fmpc.number_in("stair_heel_overhang_m", v["stair_heel_overhang_m"], 0.0, 0.1)
-    if not isinstance(v["terrain"], str):
-        raise ValueError(f"terrain={v['terrain']!r} must be a terrain string (flat, rough:CM[:SEED], stairs:CM)")
-    v["terrain"] = parse_terrain(v["terrain"]).text  # raises ValueError naming a bad one
+    v["stair_overhang_m"] = fmpc.number_in("stair_overhang_m", v["stair_overhang_m"], 0.0, 0.1)
+    v["stair_max_step_m"] = fmpc.number_in("stair_max_step_m", v["stair_max_step_m"], 0.05, 0.4)
     v["knee_rad"] = fmpc.number_in("knee_rad", v["knee_rad"], 0.1, 1.2)
     v["friction_coeff"] = fmpc.number_in("friction_coeff", v["friction_coeff"], 0.0, 2.0, lo_open=True)
     v["startup_s"] = fmpc.number_in("startup_s", v["startup_s"], 0.0, 1.0)

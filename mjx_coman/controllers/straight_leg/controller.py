@@ -136,18 +136,23 @@ def step(config: Config, state: State, obs):
     start_xy = stepping.start_com_m(c, c.start_s)[0][:2]
     prev_xy = jnp.where(s.step == 0, start_xy, foot_centre(walk.anchor_m[swing, :2], heading))
     xi = icp.capture_point(plant.com[:2], plant.com_vel[:2], w)
+    on_terrain = lambda steps: fh.footholds(c.terrain, stance_xy, steps, overhang_m=c.stair_overhang_m,  # noqa: E731
+                                            max_step_m=c.stair_max_step_m)
+    nominal = ref.footsteps_m
+    if c.terrain != "flat":  # static: the footsteps on the known terrain (stairs: whole treads)
+        nominal = nominal.at[1:].set(on_terrain(nominal[1:])[0])
     # the CMP feedback tracks the nominal plan (a step adjustment assumes the CMP at its margin till touchdown)
-    xi_ref, xid_ref, _ = icp.reference(icp_plan(c, walk, s, ref.footsteps_m, prev_xy), 0.0)
+    xi_ref, xid_ref, _ = icp.reference(icp_plan(c, walk, s, nominal, prev_xy), 0.0)
     # step adjustment, in the stance foot's frame: the ICP error the CMP cannot null before touchdown
     to_foot = stepping.rot2(heading).T
     margin = jnp.stack([c.adjust_cmp_margin_x_m, c.adjust_cmp_margin_y_m])
     offset, _ = icp.step_adjustment(to_foot @ xi, to_foot @ xi_ref, w, T - t_in, margin, c.adjust_weight,
                                     c.adjust_icp_weight, c.max_adjustment_m, c.adjust_deadband_m)
     offset = jnp.where(single, c.step_adjust_on * (to_foot.T @ offset), 0.0)
-    footsteps = ref.footsteps_m.at[1:].add(offset)
+    footsteps = nominal.at[1:].add(offset)
     landing_z = None
-    if c.terrain != "flat":  # static: the planned footsteps on the known terrain, soles at its height
-        ahead, heights = fh.footholds(c.terrain, footsteps[1:], heel_overhang_m=c.stair_heel_overhang_m)
+    if c.terrain != "flat":  # the adjusted footsteps on the terrain too, soles at its height
+        ahead, heights = on_terrain(footsteps[1:])
         footsteps = footsteps.at[1:].set(ahead)
         landing_z = (heights[0] + jnp.mean(c.sole_anchor_m[:, 2])).astype(f)
     cmp = icp.feedback_cmp(xi, xi_ref, xid_ref, w, c.icp_gain)
@@ -179,7 +184,8 @@ def step(config: Config, state: State, obs):
     yaw_next = heading + s.turn * T
     swing_acc, base_acc, swing_error = stepping.swing_and_base(c, walk, s, footsteps[1], yaw_next, c.swing_s,
                                                                 jnp.maximum(t_in - c.transfer_s, 0.0),
-                                                                c.late_down_mps, landing_z)
+                                                                c.late_down_mps, landing_z,
+                                                                None if landing_z is None else c.step_over_fraction)
     # late touchdown (sec. III-B): the swing foot's weight up, the pelvis's down with the time past touchdown
     swing_w = c.swing_weight * (1.0 + c.late_swing_weight_per_s * walk.late_s)
     base_w = c.base_weight * jnp.maximum(1.0 - c.late_pelvis_weight_per_s * walk.late_s, 0.0)
@@ -208,8 +214,9 @@ def step(config: Config, state: State, obs):
     q_p = est.qpos[7:].at[jnp.asarray(KNEES)].set(knee_p)
     qdd_p = wbc.joint_pd(q_p, est.qpos[7:], est.qvel[6:], c.privileged_kp_per_s2, c.privileged_kd_per_s)
     qdd_p = jnp.concatenate([jnp.zeros(N_BASE, f), qdd_p])
-    swing_rows = plant.sole_jac[swing] * (1.0 - mask[swing])
-    task_jac = jnp.concatenate([momentum.qdd_jac, pelvis.qdd_jac, swing_rows])
+    # the total task Jacobian: the feet are motion objectives too (the stance sole held, the swing sole tracked),
+    # else the projected posture fights the stance rows through the soft tasks
+    task_jac = jnp.concatenate([momentum.qdd_jac, pelvis.qdd_jac, plant.sole_jac[0], plant.sole_jac[1]])
     rows_w = jnp.zeros(nv, f).at[N_BASE:N_BASE + LEG_JOINTS].set(c.privileged_weight * c.straight_legs)
     tasks.append(wbc.null_space_task(task_jac, qdd_p, rows_w))
     ground_z = walk.anchor_m[stance, 2]
@@ -218,7 +225,10 @@ def step(config: Config, state: State, obs):
     z_acc = jnp.where(single, z_acc, start_acc[2])
     tasks.append(wbc.motion_task(plant.com_jac[2:3], plant.com_bias_acc[2:3], z_acc,
                                  c.com_height_weight * (1.0 - c.straight_legs)))
-    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype, toe_off=toe_off)
+    q_range = jnp.asarray(wbc.joint_range_rad(), f)
+    bounds = wbc.joint_acc_bounds(est.qpos[7:], est.qvel[6:], q_range[0], q_range[1], c.joint_limit_horizon_s,
+                                  c.joint_limit_max_acc)
+    qp, tau_nm = stepping.solve_torques(c, s, tasks, mask, obs.time_s, dtype, toe_off=toe_off, qdd_bounds=bounds)
     cop = centre_of_pressure(qp.forces, plant.contact_pos, state.cop_m)
 
     to_local = stepping.rot2(heading).T

@@ -40,7 +40,7 @@ def test_tunables_are_array_leaves_that_replace_reaches():
     ({"plant": "position"}, "plant"), ({"step_adjust": "yes"}, "step_adjust"), ({"icp_height_m": -1.0}, "icp_height_m"),
     ({"toe_off": 1}, "toe_off"), ({"contact_slack_weight": 0.0}, "contact_slack_weight"), ({"bogus": 1.0}, "bogus"),
     ({"late_touchdown": "no"}, "late_touchdown"), ({"terrain": "hills"}, "hills"), ({"terrain": 5}, "terrain"),
-    ({"stair_heel_overhang_m": 0.5}, "stair_heel_overhang_m"), ({"late_max_s": -0.1}, "late_max_s"),
+    ({"stair_overhang_m": 0.5}, "stair_overhang_m"), ({"stair_max_step_m": 1.0}, "stair_max_step_m"), ({"late_max_s": -0.1}, "late_max_s"),
     ({"adjust_deadband_m": float("inf")}, "adjust_deadband_m"), ({"toe_off_load_fraction": 2.0}, "toe_off_load_fraction"),
 ])
 def test_bad_settings_are_value_errors_naming_them(kw, name):
