@@ -126,8 +126,9 @@ def _stairs(result, rows, axes):
         s = r["series"]
         a.plot(s["com_m"][:, 0], s["com_m"][:, 2], lw=0.7, label=f"{r['label']['riser_cm']} cm")
         b.plot(s["time_s"], s["com_vel_mps"][:, 0], lw=0.5)
-    a.set(xlabel="CoM x (m)", ylabel="CoM z (m)", title=f"up stairs (Fig. 10): largest climbed "
-                                                          f"{result['largest_riser_up_cm']} cm")
+    a.set(xlabel="CoM x (m)", ylabel="CoM z (m)", title=f"stairs (Fig. 10): largest riser up "
+                                                          f"{result['largest_riser_up_cm']} cm, down "
+                                                          f"{result.get('largest_riser_down_cm')} cm")
     a.legend(fontsize=6)
     b.set(xlabel="time (s)", ylabel="CoM forward velocity (m/s)")
 

@@ -12,11 +12,11 @@
 * ``toe-off``: the flat walk at 0.1, 0.15 and the scaled 0.19 m/s for 20 s: the stance knee at mid-stance, the
   fraction of steps with toe-off and the step length (ground truth). Run it for ``straight-leg`` and
   ``straight-leg-no-toe-off`` (seed 004, sec. IV: toe-off lets the trailing leg extend).
-* ``stairs``: up ``stairs:CM`` (:mod:`mjx_coman.scenarios.terrain`: 0.3 m treads) at 0.1 m/s for 16 s, risers
-  2-10 cm (Atlas climbed 19.7 cm with a leg about twice COMAN's: ~10 cm scaled); a controller with a
-  ``terrain`` setting plans its footholds on the stairs (:mod:`mjx_coman.studies.batch`). Each riser is a
-  scene of its own (a compilation each). Climbed: no fall and the CoM risen by at least two risers. The
-  stairs of the scenarios only go up; descending is not an experiment (Fig. 10's down is left).
+* ``stairs``: up ``stairs:CM`` and down ``stairs:-CM`` (:mod:`mjx_coman.scenarios.terrain`: 0.3 m treads) at
+  0.1 m/s for 16 s, risers 3-10 cm (Atlas climbed and descended 19.7 cm with a leg about twice COMAN's: ~10 cm
+  scaled); a controller with a ``terrain`` setting plans its footholds on the stairs
+  (:mod:`mjx_coman.studies.batch`). Each riser is a scene of its own (a compilation each). Climbed: no fall and
+  the CoM risen (descended: fallen) by at least two risers.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ def _push_reduce(plan, res):
 TOE_OFF_MPS = (0.1, PUSH_MPS, FLAT_MPS)
 STAIR_MPS = 0.1
 STAIR_S = 16.0
-RISERS_CM = (2, 4, 6, 8, 10)
+RISERS_CM = (3, 5, 6, 7, 8, 10, -3, -5, -6, -7, -8, -10)  # up, then down
 
 
 def _toe_off_plan(name, size, gait):
@@ -113,15 +113,19 @@ def _stairs_plan(name, size, gait):
 
 
 def climbed(row: dict, riser_cm: float) -> bool:
-    """No fall, and the CoM rose by at least two risers (ground truth)."""
-    return (not row["fell"]) and (row.get("com_rise_m") or 0.0) >= 2 * riser_cm / 100.0 - 1e-3
+    """No fall, and the CoM rose (a negative riser: fell) by at least two risers (ground truth)."""
+    rise = (row.get("com_rise_m") or 0.0) * (1.0 if riser_cm > 0 else -1.0)
+    return (not row["fell"]) and rise >= 2 * abs(riser_cm) / 100.0 - 1e-3
 
 
 def _stairs_reduce(plan, res):
     rows = _table(plan, res)
     ok = [climbed(x, x["riser_cm"]) for x in rows]
-    best = largest_tolerated([x["riser_cm"] for x in rows], ok)
-    return {"rows": rows, "climbed": dict(zip([str(x["riser_cm"]) for x in rows], ok)), "largest_riser_up_cm": best,
+    best = {}
+    for key, sign in (("largest_riser_up_cm", 1), ("largest_riser_down_cm", -1)):
+        pick = [(abs(x["riser_cm"]), o) for x, o in zip(rows, ok) if x["riser_cm"] * sign > 0]
+        best[key] = largest_tolerated([h for h, _ in pick], [o for _, o in pick]) if pick else None
+    return {"rows": rows, "climbed": dict(zip([str(x["riser_cm"]) for x in rows], ok)), **best,
             "paper": "Atlas climbed and descended 19.685 cm risers in simulation (Fig. 10)"}
 
 

@@ -57,15 +57,21 @@ def test_push_reduction_reads_the_largest_recovered_impulse_below_the_first_fall
     assert out["90"]["median_steps_to_recover"] == 1.0  # only what lies below the first fall
 
 
-def test_stairs_rows_are_one_scene_per_riser_and_climbing_needs_two_risers_of_rise():
+def test_stairs_rows_are_one_scene_per_riser_up_and_down_and_climbing_needs_two_risers_of_rise():
     plan = studies.plan("stairs", "straight-leg")
     assert [r.scenario.terrain for r in plan.rows] == [f"stairs:{h}" for h in seed004.RISERS_CM]
     assert max(seed004.RISERS_CM) >= 0.197 / 2 * 100  # Atlas's riser scaled by the leg length
+    assert -min(seed004.RISERS_CM) >= 0.197 / 2 * 100  # and down
     check_rows("straight-leg", plan.rows, plan.seconds)
-    res = [dict(_result(False), riser_cm=h, com_rise_m=2.5 * h / 100 if h < 8 else 0.01) for h in seed004.RISERS_CM]
+    # up: climbed to 6 cm; down: the CoM falls by 2.5 risers to 5 cm, and rises at 6 cm (stuck, no fall)
+    rise = {h: (2.5 * h / 100 if h < 8 else 0.01) if h > 0 else (2.5 * h / 100 if h > -6 else 0.01)
+            for h in seed004.RISERS_CM}
+    res = [dict(_result(False), riser_cm=h, com_rise_m=rise[h]) for h in seed004.RISERS_CM]
     out = seed004.EXPERIMENTS["stairs"].reduce(plan, res)
-    assert out["largest_riser_up_cm"] == 6 and out["climbed"]["8"] is False
+    assert out["largest_riser_up_cm"] == 7 and out["climbed"]["8"] is False
+    assert out["largest_riser_down_cm"] == 5 and out["climbed"]["-6"] is False
     assert not seed004.climbed(dict(_result(True), com_rise_m=1.0), 2)  # a fall is not a climb
+    assert not seed004.climbed(dict(_result(False), com_rise_m=0.1), -2)  # going up is not a descent
 
 
 def test_toe_off_rows_walk_at_the_three_speeds():
