@@ -209,12 +209,18 @@ def swing_and_base(config, state: WalkState, s: Sensed, next_xy, yaw_next, swing
                           ref.acc)
     ang = wbc.orientation_pd(quat_to_rot(ref.quat), plant.sole_rot[s.swing], ref.ang_vel, sole_vel[3:],
                              c.swing_kp_per_s2, c.swing_kd_per_s, ref.ang_acc)
-    base_quat, base_w, base_wd = tr.base_reference(s.t_in, c.step_time_s, state.heading_rad,
-                                                   jnp.where(s.single, s.turn, 0.0))
-    base_acc = wbc.orientation_pd(quat_to_rot(base_quat), plant.pelvis_rot, base_w, plant.pelvis_jac[3:] @ est.qvel,
-                                  c.base_kp_per_s2, c.base_kd_per_s, base_wd)
+    base_acc = upright_acc(c, state, s, plant.pelvis_rot, plant.pelvis_jac[3:] @ est.qvel)
     error = jnp.where(s.single, jnp.linalg.norm(ref.pos - s.sole_pos[s.swing]), 0.0)
     return jnp.concatenate([lin, ang]), base_acc, error
+
+
+def upright_acc(config, state: WalkState, s: Sensed, rot, ang_vel):
+    """Angular acceleration (3,) of a body (rotation ``rot``, world angular velocity ``ang_vel``) toward upright at
+    the walk's heading, turning with the joystick over the step (seed 001, sec. III: the base; seed 004: the
+    pelvis and the chest)."""
+    c = config
+    quat, w, wd = tr.base_reference(s.t_in, c.step_time_s, state.heading_rad, jnp.where(s.single, s.turn, 0.0))
+    return wbc.orientation_pd(quat_to_rot(quat), rot, w, ang_vel, c.base_kp_per_s2, c.base_kd_per_s, wd)
 
 
 def solve_torques(config, s: Sensed, tasks, mask, time_s, dtype, toe_off=None, qdd_bounds=None):

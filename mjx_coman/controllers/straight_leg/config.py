@@ -59,6 +59,8 @@ OWN = (
             "clearance_m above the higher of its lift-off and landing heights over this fraction of the swing, "
             "moves across, and drops over the last fraction (footstep_mpc.trajectory.step_over_reference)", True,
             (0.05, 0.45)),
+    Setting("chest_weight", 1.0, "with fixed_upper_body=false: weight of the chest (torso) orientation task, "
+            "upright at the heading (seed 004 eq. 5; the arms follow the posture task)", True, (0.0, None)),
     Setting("joint_limit_horizon_s", 0.05, "joint-acceleration bounds (seed 004 eq. 5): no joint may cross its "
             "position limit within this time at a constant acceleration, s (mjx_coman.wbc.limits)", True,
             (0.005, 1.0)),

@@ -216,7 +216,14 @@ def step(config: Config, state: State, obs):
     qdd_p = jnp.concatenate([jnp.zeros(N_BASE, f), qdd_p])
     # the total task Jacobian: the feet are motion objectives too (the stance sole held, the swing sole tracked),
     # else the projected posture fights the stance rows through the soft tasks
-    task_jac = jnp.concatenate([momentum.qdd_jac, pelvis.qdd_jac, plant.sole_jac[0], plant.sole_jac[1]])
+    task_rows = [momentum.qdd_jac, pelvis.qdd_jac, plant.sole_jac[0], plant.sole_jac[1]]
+    if not c.fixed_upper_body:  # static: the chest upright at the heading (eq. 5's chest objective); the arms
+        # keep their posture rows (the posture task covers every joint)
+        chest_acc = stepping.upright_acc(c, walk, s, plant.torso_rot, plant.torso_jac[3:] @ est.qvel)
+        chest = wbc.torso_orientation_task(plant, chest_acc, c.chest_weight)
+        tasks.append(chest)
+        task_rows.append(chest.qdd_jac)
+    task_jac = jnp.concatenate(task_rows)
     rows_w = jnp.zeros(nv, f).at[N_BASE:N_BASE + LEG_JOINTS].set(c.privileged_weight * c.straight_legs)
     tasks.append(wbc.null_space_task(task_jac, qdd_p, rows_w))
     ground_z = walk.anchor_m[stance, 2]
