@@ -112,10 +112,15 @@ def _mid_swing_push(result, rows, axes):
 
 def _toe_off(result, rows, axes):
     a, b = axes
-    v = [r["label"]["speed_mps"] for r in rows]
+    flat = [r for r in rows if r["label"].get("terrain", "flat") == "flat"]
+    stairs = [r for r in rows if r["label"].get("terrain", "flat") != "flat"]
+    value = lambda r, key: r.get(key) if r.get(key) is not None else float("nan")  # noqa: E731
     for key, ax, unit in (("stance_knee_mid_rad", a, "rad"), ("toe_off_fraction", b, "")):
-        ax.plot(v, [r.get(key) if r.get(key) is not None else float("nan") for r in rows], "-o", ms=3)
+        ax.plot([r["label"]["speed_mps"] for r in flat], [value(r, key) for r in flat], "-o", ms=3, label="flat")
+        for r in stairs:
+            ax.plot([r["label"]["speed_mps"]], [value(r, key)], "v", ms=5, label=r["label"]["terrain"])
         ax.set(xlabel="commanded speed (m/s)", ylabel=f"{key} ({unit})" if unit else key)
+        ax.legend(fontsize=6)
     a.set_title("stance knee at mid-stance", fontsize=8)
     b.set_title("steps with toe-off (ground truth)", fontsize=8)
 

@@ -10,7 +10,8 @@
   (``transfer_s`` of a controller that has one).
 
 * ``toe-off``: the flat walk at 0.1, 0.15 and the scaled 0.19 m/s for 20 s: the stance knee at mid-stance, the
-  fraction of steps with toe-off and the step length (ground truth). Run it for ``straight-leg`` and
+  fraction of steps with toe-off and the step length (ground truth), and down ``stairs:-5`` at 0.1 m/s. Run it
+  for ``straight-leg`` and
   ``straight-leg-no-toe-off`` (seed 004, sec. IV: toe-off lets the trailing leg extend).
 * ``stairs``: up ``stairs:CM`` and down ``stairs:-CM`` (:mod:`mjx_coman.scenarios.terrain`: 0.3 m treads) at
   0.1 m/s for 16 s, risers 3-10 cm (Atlas climbed and descended 19.7 cm with a leg about twice COMAN's: ~10 cm
@@ -93,15 +94,22 @@ STAIR_S = 16.0
 RISERS_CM = (3, 5, 6, 7, 8, 10, -3, -5, -6, -7, -8, -10)  # up, then down
 
 
+TOE_OFF_STAIRS = "stairs:-5"  # and down a staircase (sec. IV: toe-off matters most stepping down)
+
+
 def _toe_off_plan(name, size, gait):
     vs = [v for v in TOE_OFF_MPS if v <= gait.max_forward_mps + 1e-9]
-    return _small(Plan([Row(forward_mps=v) for v in vs], [{"speed_mps": v} for v in vs], 20.0, {}), size)
+    rows = [Row(forward_mps=v) for v in vs] + [Row(forward_mps=STAIR_MPS, scenario=sc.Scenario(terrain=TOE_OFF_STAIRS))]
+    labels = [{"speed_mps": v, "terrain": "flat"} for v in vs] + [{"speed_mps": STAIR_MPS, "terrain": TOE_OFF_STAIRS}]
+    return _small(Plan(rows, labels, 20.0, {}), size)
 
 
 def _toe_off_reduce(plan, res):
-    keep = ("speed_mps", "fell", "stance_knee_mid_rad", "toe_off_fraction", "step_length_m", "mean_speed_mps",
-            "mean_abs_knee_torque_nm")
-    return {"rows": _table(plan, res), "by_speed": [{k: x.get(k) for k in keep} for x in _table(plan, res)],
+    keep = ("speed_mps", "terrain", "fell", "stance_knee_mid_rad", "toe_off_fraction", "step_length_m",
+            "mean_speed_mps", "mean_abs_knee_torque_nm")
+    rows = _table(plan, res)
+    pick = lambda flat: [{k: x.get(k) for k in keep} for x in rows if (x["terrain"] == "flat") == flat]  # noqa: E731
+    return {"rows": rows, "by_speed": pick(True), "down_stairs": pick(False),
             "paper": "toe-off lets the trailing leg extend, the leading leg bend less (sec. IV)"}
 
 

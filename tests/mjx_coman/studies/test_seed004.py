@@ -7,6 +7,7 @@ import pytest
 
 from mjx_coman import controllers, studies
 from mjx_coman.studies import seed001, seed004
+from mjx_coman.scenarios import terrain as T
 from mjx_coman.studies.batch import check_rows
 
 
@@ -74,6 +75,12 @@ def test_stairs_rows_are_one_scene_per_riser_up_and_down_and_climbing_needs_two_
     assert not seed004.climbed(dict(_result(False), com_rise_m=0.1), -2)  # going up is not a descent
 
 
-def test_toe_off_rows_walk_at_the_three_speeds():
+def test_toe_off_rows_walk_at_the_three_speeds_and_down_stairs():
     plan = studies.plan("toe-off", "straight-leg-no-toe-off")
-    assert [lab["speed_mps"] for lab in plan.labels] == list(seed004.TOE_OFF_MPS) and plan.seconds == 20.0
+    assert [lab["speed_mps"] for lab in plan.labels] == [*seed004.TOE_OFF_MPS, seed004.STAIR_MPS]
+    assert [r.scenario.terrain for r in plan.rows] == ["flat"] * 3 + [seed004.TOE_OFF_STAIRS] and plan.seconds == 20.0
+    assert T.parse_terrain(seed004.TOE_OFF_STAIRS).height_m < 0  # down
+    res = [dict(_result(False), toe_off_fraction=0.1 * i) for i in range(4)]
+    out = seed004.EXPERIMENTS["toe-off"].reduce(plan, res)
+    assert [x["toe_off_fraction"] for x in out["by_speed"]] == [0.0, 0.1, 0.2]
+    assert [(x["terrain"], x["toe_off_fraction"]) for x in out["down_stairs"]] == [(seed004.TOE_OFF_STAIRS, 0.1 * 3)]
