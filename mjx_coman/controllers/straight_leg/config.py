@@ -113,12 +113,12 @@ OWN = (
     Setting("adjust_cmp_margin_x_m", 0.06, "step adjustment: the CMP's range forward and back of the stance foot's "
             "centre that the ICP feedback may use before a step moves, m (the sole reaches 0.10)", True, (0.0, 0.1)),
     Setting("adjust_cmp_margin_y_m", 0.03, "the same sideways, m (the sole reaches 0.05)", True, (0.0, 0.05)),
-    Setting("adjust_deadband_m", 0.03, "step adjustment: ICP error (per axis, stance foot frame) that moves no "
+    Setting("adjust_deadband_m", 0.015, "step adjustment: ICP error (per axis, stance foot frame) that moves no "
             "step, m", True, (0.0, 0.2)),
     Setting("adjust_weight", 1.0, "step adjustment: weight of the footstep offset", True, (0.0, None)),
-    Setting("adjust_icp_weight", 4.0, "step adjustment: weight of the ICP error left at touchdown", True,
+    Setting("adjust_icp_weight", 10.0, "step adjustment: weight of the ICP error left at touchdown", True,
             (0.0, None)),
-    Setting("max_adjustment_m", 0.1, "step adjustment: largest offset per axis, m", True, (0.0, 0.3)),
+    Setting("max_adjustment_m", 0.15, "step adjustment: largest offset per axis, m", True, (0.0, 0.3)),
 )
 
 # footstep-mpc's 1e-4 left a condition number of 1e6 in the QP with the null-space rows: float32 qpax broke down
