@@ -37,7 +37,9 @@ def test_every_plan_is_valid_and_small_is_its_first_rows(name):
     assert small.labels == full.labels[: len(small.rows)] and all(r.seed == 3 for r in small.rows)
     if name in FLAT:  # one compilation for every small flat experiment: the same walk length and batch
         assert small.seconds == seed001.SMALL_S and len(small.rows) == seed001.SMALL_ROWS
-        assert all(r.scenario.terrain == "flat" for r in full.rows)
+        assert all(r.scenario.terrain == "flat" for r in small.rows)
+        if name != "toe-off":  # at full size toe-off also walks down stairs (seed 004 sec. IV)
+            assert all(r.scenario.terrain == "flat" for r in full.rows)
 
 
 def test_the_papers_values_are_in_the_grids():
