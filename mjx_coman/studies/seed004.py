@@ -91,7 +91,7 @@ def _push_reduce(plan, res):
 TOE_OFF_MPS = (0.1, PUSH_MPS, FLAT_MPS)
 STAIR_MPS = 0.1
 STAIR_S = 16.0
-RISERS_CM = (3, 5, 6, 7, 8, 10, -3, -5, -6, -7, -8, -10)  # up, then down
+RISERS_CM = (3, 5, 7, 10, -3, -5, -7, -10)  # up, then down
 
 
 TOE_OFF_STAIRS = "stairs:-5"  # and down a staircase (sec. IV: toe-off matters most stepping down)

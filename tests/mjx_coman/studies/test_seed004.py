@@ -64,13 +64,13 @@ def test_stairs_rows_are_one_scene_per_riser_up_and_down_and_climbing_needs_two_
     assert max(seed004.RISERS_CM) >= 0.197 / 2 * 100  # Atlas's riser scaled by the leg length
     assert -min(seed004.RISERS_CM) >= 0.197 / 2 * 100  # and down
     check_rows("straight-leg", plan.rows, plan.seconds)
-    # up: climbed to 6 cm; down: the CoM falls by 2.5 risers to 5 cm, and rises at 6 cm (stuck, no fall)
+    # up: climbed to 7 cm; down: the CoM falls by 2.5 risers to 5 cm, and rises at 7 cm (stuck, no fall)
     rise = {h: (2.5 * h / 100 if h < 8 else 0.01) if h > 0 else (2.5 * h / 100 if h > -6 else 0.01)
             for h in seed004.RISERS_CM}
     res = [dict(_result(False), riser_cm=h, com_rise_m=rise[h]) for h in seed004.RISERS_CM]
     out = seed004.EXPERIMENTS["stairs"].reduce(plan, res)
-    assert out["largest_riser_up_cm"] == 7 and out["climbed"]["8"] is False
-    assert out["largest_riser_down_cm"] == 5 and out["climbed"]["-6"] is False
+    assert out["largest_riser_up_cm"] == 7 and out["climbed"]["10"] is False
+    assert out["largest_riser_down_cm"] == 5 and out["climbed"]["-7"] is False
     assert not seed004.climbed(dict(_result(True), com_rise_m=1.0), 2)  # a fall is not a climb
     assert not seed004.climbed(dict(_result(False), com_rise_m=0.1), -2)  # going up is not a descent
 
