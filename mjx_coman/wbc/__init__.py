@@ -50,7 +50,8 @@ from mjx_coman.wbc.tasks import (
 )
 
 __all__ = [
-    "joint_acc_bounds", "joint_range_rad", "Plant", "check_plant", "plant_from", "QP", "build_qp", "export_qp", "problem_size", "WbcInfo",
+    "joint_acc_bounds", "joint_range_rad", "Plant", "check_plant", "plant_from", "QP", "build_qp", "export_qp",
+    "problem_size", "WbcInfo",
     "WbcSolution", "fallback_torque", "kkt_residual", "qpax_solve", "solution", "solve", "solve_qp", "Task",
     "com_task", "foot_task",
     "force_distribution_task", "force_regularization", "frame_velocity", "joint_acc_task", "joint_pd",

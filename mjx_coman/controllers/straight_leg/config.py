@@ -223,9 +223,10 @@ def make_config(**settings) -> Config:
             raise ValueError(f"{name}={v[name]!r} must be a whole number in [{lo}, {hi}]")
     if not isinstance(v["terrain"], str):
         raise ValueError(f"terrain={v['terrain']!r} must be a terrain string (flat, rough:CM[:SEED], stairs:CM)")
-    v["terrain"] = parse_terrain(v["terrain"]).text  # raises ValueError naming a bad one
+    terrain = parse_terrain(v["terrain"])  # raises ValueError naming a bad one
+    v["terrain"] = terrain.text
     v["stairs_swing_s"] = _ticks("stairs_swing_s", fmpc.number_in("stairs_swing_s", v["stairs_swing_s"], 0.1, 2.0))
-    if parse_terrain(v["terrain"]).kind == "stairs":
+    if terrain.kind == "stairs":
         v["swing_s"] = v["stairs_swing_s"]
     v["swing_s"] = _ticks("swing_s", fmpc.number_in("swing_s", v["swing_s"], 0.1, 2.0))
     v["transfer_s"] = _ticks("transfer_s", fmpc.number_in("transfer_s", v["transfer_s"], 0.0, 1.0))

@@ -5,9 +5,10 @@ terrain (its ``terrain`` setting, a terrain string as ``--terrain``) and plans o
 the terrain's under the foot's centre, and on ``stairs:CM`` a footstep whose sole (``SOLE_HALF_LENGTH_M``
 either side of its centre) would straddle a stair edge moves along x off it (:func:`on_treads`), one footstep
 after the other from the stance foot: onto the far tread where that step is at most ``max_step_m`` long or the
-foot before is already at the edge, else back before it. On the far side of an edge up the heel may overhang it by ``overhang_m``, before an edge
-down the toe may (0.3 m treads under a 0.2 m sole: whole soles and a margin took 0.22 m steps, too long for
-COMAN); the other end of the sole keeps ``margin_m`` from the riser. Stairs run along world x
+foot before is already at the edge, else back before it. On the far side of an edge up the heel may overhang
+it by ``overhang_m``, before an edge down the toe may (the controller keeps 0: the feet touch at their corners,
+and an overhanging heel landed off the edge); the other end of the sole keeps ``margin_m`` from the riser, so a
+step across an edge is at least a sole and a margin long (0.21 m on 0.3 m treads). Stairs run along world x
 (:mod:`mjx_coman.scenarios.terrain`); the walk is assumed to head along x there.
 """
 

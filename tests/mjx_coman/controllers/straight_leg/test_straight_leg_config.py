@@ -40,7 +40,12 @@ def test_tunables_are_array_leaves_that_replace_reaches():
     ({"plant": "position"}, "plant"), ({"step_adjust": "yes"}, "step_adjust"), ({"icp_height_m": -1.0}, "icp_height_m"),
     ({"toe_off": 1}, "toe_off"), ({"contact_slack_weight": 0.0}, "contact_slack_weight"), ({"bogus": 1.0}, "bogus"),
     ({"late_touchdown": "no"}, "late_touchdown"), ({"terrain": "hills"}, "hills"), ({"terrain": 5}, "terrain"),
-    ({"stair_overhang_m": 0.5}, "stair_overhang_m"), ({"stair_max_step_m": 1.0}, "stair_max_step_m"), ({"late_max_s": -0.1}, "late_max_s"),
+    ({"stair_overhang_m": 0.5}, "stair_overhang_m"), ({"stair_max_step_m": 1.0}, "stair_max_step_m"),
+    ({"stairs_swing_s": 0.401}, "stairs_swing_s"), ({"stairs_swing_s": 5.0}, "stairs_swing_s"),
+    ({"terrain": "stairs:5", "stairs_swing_s": 0.15}, "transfer_s"),  # the stairs swing shorter than the transfer
+    ({"step_over_fraction": 0.9}, "step_over_fraction"), ({"chest_weight": -1.0}, "chest_weight"),
+    ({"joint_limit_horizon_s": 0.0}, "joint_limit_horizon_s"), ({"joint_limit_max_acc": 0.0}, "joint_limit_max_acc"),
+    ({"late_max_s": -0.1}, "late_max_s"),
     ({"adjust_deadband_m": float("inf")}, "adjust_deadband_m"), ({"toe_off_load_fraction": 2.0}, "toe_off_load_fraction"),
 ])
 def test_bad_settings_are_value_errors_naming_them(kw, name):

@@ -4,8 +4,8 @@ against central differences, with the default straight privileged knees and with
 walk of its own; ``python -m pytest -m slow``).
 
 Measured (float32, 1 s walks at 0.15 m/s, seed 0, at 5ad2efe): straight knees 1.9 % off central differences of
-+-0.25 in a batch of 4 walks, 10.3 % in this batch of 6 (float32 rounding differs with the batch). Before the null space of eq. 10 held the stance sole (0875e17) the straight-knee derivative was 15 % to
-90 % off and the check differentiated with the privileged knees at 0.4 rad only (5.2 % then).
++-0.25 in a batch of 4 walks, 10.3 % in this batch of 6 (float32 rounding differs with the batch). Before the
+null space of eq. 10 held the stance sole (0875e17) the straight-knee derivative was 15 % to 90 % off and the check differentiated with the privileged knees at 0.4 rad only (5.2 % then).
 """
 
 from __future__ import annotations
