@@ -62,6 +62,8 @@ def model_ids() -> dict:
         r_foot_geoms=feet[:4],
         l_foot_geoms=feet[4:],
         pelvis_body=body("Waist"),
+        l_foot_body=body("LFoot"),
+        r_foot_body=body("RFoot"),
         torso_body=body("DWYTorso"),
         r_ft_site=site("r_ft"),
         l_ft_site=site("l_ft"),

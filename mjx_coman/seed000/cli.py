@@ -49,7 +49,7 @@ def _run(args):
         imp = args.impulses if args.impulse_step is None else impulse_grid(args.impulse_step, args.max_impulse)
         res = push_table(imp, args.phases, args.push_step, args.steps_after, tuple(args.directions),
                          tuple(args.variants), seed=args.seed, overrides=ov, supply_v=args.supply_v,
-                         friction_scale=args.friction_scale)
+                         friction_scale=args.friction_scale, truth_estimate=args.truth_estimate)
     elif args.experiment == "ablate":
         names = args.switches or list(SWITCHES)
         res = ablate({n: SWITCHES[n] for n in names}, args.seconds, args.impulse, seed=args.seed, overrides=ov)
@@ -82,6 +82,8 @@ def main(argv=None) -> int:
                     help="comma-separated registered time-projection variants")
     pt.add_argument("--supply-v", type=float, default=SUPPLY_V, help="motor supply voltage, V (a limit switched)")
     pt.add_argument("--friction-scale", type=float, default=1.0, help="multiplier of the ground friction")
+    pt.add_argument("--truth-estimate", action="store_true",
+                    help="the controller estimates from the simulator's true relative positions (privileged)")
     for name in ("drag", "scatter", "speeds", "ten"):  # "ten": all three in one batch
         sp = sub.add_parser(name)
         sp.add_argument("--seconds", type=float, default=10.0)

@@ -66,12 +66,19 @@ def push_start_s(push_step, push_phase, cfg=None) -> float:
 
 
 @functools.lru_cache(maxsize=None)
-def _walker(spec, save):
-    return ro.batched_walk(controllers.get(FAMILY), spec, save, config_axes=0, joystick_axes=0)
+def _walker(spec, save, truth_estimate: bool = False):
+    ctrl = controllers.get(FAMILY)
+    if truth_estimate:  # the same controller, given the simulator's state: it estimates from the truth
+        ctrl = ctrl._replace(privileged=True)
+    return ro.batched_walk(ctrl, spec, save, config_axes=0, joystick_axes=0, privileged_ok=truth_estimate)
 
 
-def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64, speeds=None, save=None):
+def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64, speeds=None, save=None,
+              truth_estimate: bool = False):
     """Walk every (config, push, speed) of the lists, in chunks of one compiled vmap.
+
+    ``truth_estimate``: the controller reads the true relative positions instead of its sensors' (a switch
+    of the estimate; privileged, for measuring what estimation costs).
 
     Returns:
         The :class:`~mjx_coman.rollout.WalkResult` with a leading batch axis, as NumPy arrays.
@@ -81,7 +88,7 @@ def run_batch(env_params, configs, pushes, spec, seed: int = 0, chunk: int = 64,
         raise ValueError(f"need as many pushes as configs (> 0), got {len(pushes)} and {n}")
     speeds = [0.0] * n if speeds is None else list(speeds)
     size = min(chunk, n)
-    fn = _walker(spec, save)
+    fn = _walker(spec, save, truth_estimate)
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
     outs = []
     bar = tqdm(total=n, unit="walk", file=sys.stderr, disable=None, desc="seed000", dynamic_ncols=True)  # off without a TTY

@@ -16,11 +16,12 @@ from mjx_coman.seed000.common import (FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_T
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
                steps_after: int = 8, directions=("forward", "backward"), variants=("time-projection", "open-loop"),
                seed: int = 0, chunk: int = 64, overrides: dict | None = None, supply_v: float = SUPPLY_V,
-               friction_scale: float = 1.0) -> dict:
+               friction_scale: float = 1.0, truth_estimate: bool = False) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place).
 
     ``overrides``: settings changed in every variant (``--set``); ``supply_v`` and ``friction_scale``
-    switch two limits of the plant (:func:`~mjx_coman.seed000.common.plant`).
+    switch two limits of the plant (:func:`~mjx_coman.seed000.common.plant`); ``truth_estimate`` the
+    estimate (the simulator's true relative positions, see :func:`~mjx_coman.seed000.common.run_batch`).
     """
     imp = np.asarray(sorted(impulses), float)
     if imp.size == 0 or np.any(imp <= 0):
@@ -41,14 +42,15 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
                                                impulse_ns=m, direction_rad=sign[dname]))
                     index.append((c, dname, ph, m))
     t0 = time.perf_counter()
-    res = run_batch(env, ctrl, pushes, spec, seed, chunk)
+    res = run_batch(env, ctrl, pushes, spec, seed, chunk, truth_estimate=truth_estimate)
     wall = time.perf_counter() - t0
     shape = (len(variants), len(directions), n_phases, imp.size)
     fell = res.fell.reshape(shape)
     s2r = res.steps_to_recover.reshape(shape)
     out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,
            "push_duration_s": PUSH_DURATION_S, "seconds": seconds, "rollouts": len(ctrl),
-           "wall_s": round(wall, 1), "supply_v": supply_v, "friction_scale": friction_scale, "tables": {}}
+           "wall_s": round(wall, 1), "supply_v": supply_v, "friction_scale": friction_scale,
+           "truth_estimate": truth_estimate, "tables": {}}
     every, per_phase = {}, {}
     for i, c in enumerate(variants):
         for j, dname in enumerate(directions):

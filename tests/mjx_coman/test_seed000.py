@@ -76,7 +76,7 @@ def test_plant_switches_the_supply_voltage_and_the_ground_friction():
                                   ["push-table", "--directions", "up"], ["push-table", "--variants", "joint-pd"],
                                   ["ablate", "--switches", "nope"], ["ablate", "--impulse", "0"],
                                   ["ablate", "--seconds", "3"], ["push-table", "--supply-v", "0"],
-                                  ["push-table", "--friction-scale", "nan"],
+                                  ["push-table", "--friction-scale", "nan"], ["push-table", "--truth-estimate", "1"],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -126,3 +126,12 @@ def test_ten_second_walks_drag_scatter_and_speeds():
     assert drag["+1N"]["overall_speed_mps"] > drag["+0N"]["overall_speed_mps"] > drag["-1N"]["overall_speed_mps"]
     for v, r in out["speeds"].items():
         assert not r["fell"] and r["within_25_percent"], (v, r)
+
+
+@pytest.mark.slow
+def test_push_table_with_the_true_state_as_the_estimate():
+    """The estimation switch (``--truth-estimate``): the privileged walk runs and stands a 3 N s push."""
+    out = ex.push_table(impulses=(3.0,), n_phases=2, steps_after=3, directions=("backward",),
+                        variants=("time-projection",), truth_estimate=True, overrides={"zeta": 1.0, "window": 1})
+    assert out["truth_estimate"] and out["rollouts"] == 2
+    assert out["tables"]["time-projection/backward"]["recovered"] == [[1], [1]]

@@ -27,7 +27,9 @@ One pure ``init``/``step`` pair of the controller interface
 3. **Estimation**: link encoders + IMU -> relative pelvis/feet positions ->
    IIR (eq. 26) -> velocities -> error ``e`` (eq. 15)
    (:mod:`~mjx_coman.controllers.time_projection.estimation`), sagittal error through the smooth
-   dead-zones (eq. 27).
+   dead-zones (eq. 27). Run as a privileged controller (``observation.truth``
+   given: ``push-table --truth-estimate``) it takes the simulator's true
+   relative positions instead of the sensors', to measure what the estimate costs.
 4. **Footstep adjustment**: table B of Figure 13 (``jaxlp.projection``): the
    final swing-foot adjustment ``Delta = b(t) . e`` relative to the pelvis,
    truncated at 0.35 ``h1`` and converted to the attack angle ``Delta / h1``
@@ -296,7 +298,7 @@ def step(params: Config, state: ControllerState, obs: Observation
     lean = params.lean_s * speed * speed_factor(params, step_idx)
     offset = (params.pelvis_offset_m + lean) * ramp_in
     q_nom = nominal_at(params, tick, step_idx, d, speed, offset)
-    raw = est.measure_relative(readings, d)
+    raw = est.measure_relative(readings, d) if obs.truth is None else est.true_relative(obs.truth, d)
     filt, e = est.estimator_step(filt, raw, q_nom, d, params.zeta, params.dt_s)
     err = filters.smooth_deadzone(e.error[0], params.deadzone)
     adj, held = footstep_block(params, tick, err, state.held_m)

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 from jaxlp import filters
 from mjx_coman.actuators import JOINT_INDEX
 from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, feet_in_frame, quat_to_rot, rot_z
-from mjx_coman.sensors import Readings
+from mjx_coman.sensors import Readings, model_ids
 from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG, RIGHT_LEG
 
 LEFT_KNEE = JOINT_INDEX["LKneeSag"]
@@ -119,6 +119,12 @@ def true_feet(data, foot_body_ids: tuple[int, int], pelvis_body_id: int) -> tupl
         foot = jnp.asarray(data.xpos[b]) + jnp.asarray(data.xmat[b]).reshape(3, 3) @ offset
         out.append(to_heading @ (foot - pelvis))
     return out[0], out[1]
+
+
+def true_relative(data, d) -> jax.Array:
+    """(2, 2) true 3LP relative positions from the simulator (``mjx.Data``): :func:`measure_relative`'s truth."""
+    ids = model_ids()
+    return relative_from_feet(*true_feet(data, (ids["l_foot_body"], ids["r_foot_body"]), ids["pelvis_body"]), d)
 
 
 def estimator_init(window: int = VELOCITY_WINDOW, dtype=jnp.float32) -> filters.FilterState:

@@ -50,15 +50,12 @@ class Trace(NamedTuple):
 
 def trace(state) -> Trace:
     """The :class:`Trace` of a :class:`mjx_coman.rollout.RolloutState` of a time-projection walk."""
-    from mjx_coman.ground_truth import foot_body_ids
-
     e, x = state.env, state.telemetry.extra
     ids = model_ids()
-    left, right = est.true_feet(e.data, foot_body_ids(), ids["pelvis_body"])
     force = e.readings.foot_normal_force_n
     return Trace(
         error=x.error[0], adjustment_m=x.adjustment_m, d=x.d,
-        measured_rel_m=est.measure_relative(e.readings, x.d), true_rel_m=est.relative_from_feet(left, right, x.d),
+        measured_rel_m=est.measure_relative(e.readings, x.d), true_rel_m=est.true_relative(e.data, x.d),
         knee_deflection_rad=est.knee_deflection_rad(e.readings), foot_force_n=jnp.stack([force[1], force[0]]),
         pelvis_rpy_rad=e.readings.imu_rpy_rad, target_rad=state.command.target,
         link_angle_rad=e.readings.link_angle_rad, pelvis_m=e.data.xpos[ids["pelvis_body"]],

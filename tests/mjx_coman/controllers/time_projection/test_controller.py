@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -14,6 +15,7 @@ from mjx_coman.actuators import JOINT_INDEX, NU
 from mjx_coman.controllers.base import SUPPORT_DOUBLE, SUPPORT_LEFT, SUPPORT_RIGHT, Observation, joystick
 from mjx_coman.controllers.time_projection import config as cfg_mod
 from mjx_coman.controllers.time_projection import controller as ctl
+from mjx_coman.controllers.time_projection import estimation as est
 from mjx_coman.controllers.time_projection.open_loop import LEFT_LEG_INDEX
 
 MIRROR_TOL_RAD = 2e-5
@@ -258,3 +260,31 @@ def test_start_up_phase_keeps_the_feet_down(params, rolled, reset_state):
     legs = [JOINT_INDEX[s + j] for s in "LR" for j in ("HipLat", "AnkLat", "KneeSag")]
     assert dev[:, legs].max() < 0.15
     assert dev[:, [JOINT_INDEX["LKneeSag"], JOINT_INDEX["RKneeSag"]]].max() < 0.05  # no knee-bending lift
+
+
+class _Poses(NamedTuple):
+    """The fields of ``mjx.Data`` the true relative positions read."""
+
+    xpos: jax.Array
+    xquat: jax.Array
+    xmat: jax.Array
+
+
+def test_a_privileged_run_estimates_from_the_simulators_truth(params, reset_state):
+    """With ``observation.truth`` the raw relative positions are the simulator's, else the sensors' (eq. 15 input)."""
+    data = reset_state.data
+    moved = _Poses(data.xpos.at[1:, 0].add(jnp.arange(data.xpos.shape[0] - 1) * 0.01),  # every body but the world
+                   data.xquat, data.xmat)  # moved forward by its own amount: the feet move against the pelvis
+    state = ctl.init(params)
+
+    @jax.jit
+    def raw(truth):
+        obs = Observation(reset_state.readings, joystick(), jnp.zeros(()), truth)
+        _, _, tel = ctl.step(params, state, obs)
+        return tel.extra.measured_rel_m, tel.extra.d
+
+    sensed, d = raw(None)
+    np.testing.assert_allclose(np.asarray(sensed), np.asarray(est.measure_relative(reset_state.readings, d)), atol=1e-6)
+    true, d = raw(moved)
+    np.testing.assert_allclose(np.asarray(true), np.asarray(est.true_relative(moved, d)), atol=1e-6)
+    assert np.max(np.abs(np.asarray(true) - np.asarray(sensed))) > 0.05  # the moved bodies, not the readings
