@@ -42,9 +42,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import mujoco
 
-from mjx_coman import load_model
 from mjx_coman.kinematics import FOOT_POINT_OFFSET_M, quat_to_rot
 from mjx_coman.scenarios.terrain import parse_terrain, terrain_height_m
 from mjx_coman.sensors import foot_wrenches, gravity_frame_quat, model_ids
@@ -151,9 +149,8 @@ def judge_on(terrain, judge: Judge | None = None) -> Judge:
 
 def foot_body_ids() -> tuple[int, int]:
     """MuJoCo ids of the (left, right) foot bodies (their origin is the ankle centre)."""
-    m = load_model()
-    return (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "LFoot"),
-            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "RFoot"))
+    ids = model_ids()
+    return ids["l_foot_body"], ids["r_foot_body"]
 
 
 def foot_points_world(data) -> jax.Array:
