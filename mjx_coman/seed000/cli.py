@@ -49,7 +49,8 @@ def _run(args):
         imp = args.impulses if args.impulse_step is None else impulse_grid(args.impulse_step, args.max_impulse)
         res = push_table(imp, args.phases, args.push_step, args.steps_after, tuple(args.directions),
                          tuple(args.variants), seed=args.seed, overrides=ov, supply_v=args.supply_v,
-                         friction_scale=args.friction_scale, truth_estimate=args.truth_estimate)
+                         friction_scale=args.friction_scale, truth_estimate=args.truth_estimate,
+                         phases=args.phase_list)
     elif args.experiment == "ablate":
         names = args.switches or list(SWITCHES)
         res = ablate({n: SWITCHES[n] for n in names}, args.seconds, args.impulse, seed=args.seed, overrides=ov)
@@ -71,6 +72,8 @@ def main(argv=None) -> int:
     pt = sub.add_parser("push-table")
     pt.add_argument("--impulses", type=_floats, default=list(PUSH_TABLE_IMPULSES_NS), help="N s")
     pt.add_argument("--phases", type=int, default=8)
+    pt.add_argument("--phase-list", type=_floats, default=None,
+                    help="comma-separated push phases in [0, 1) (instead of --phases evenly spaced)")
     pt.add_argument("--push-step", type=int, default=4)
     pt.add_argument("--steps-after", type=int, default=8)
     pt.add_argument("--impulse-step", type=float, default=None,

@@ -16,18 +16,23 @@ from mjx_coman.seed000.common import (FAMILY, MARGIN_NS, PUSH_DURATION_S, PUSH_T
 def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: int = 4,
                steps_after: int = 8, directions=("forward", "backward"), variants=("time-projection", "open-loop"),
                seed: int = 0, chunk: int = 64, overrides: dict | None = None, supply_v: float = SUPPLY_V,
-               friction_scale: float = 1.0, truth_estimate: bool = False) -> dict:
+               friction_scale: float = 1.0, truth_estimate: bool = False, phases=None) -> dict:
     """Recovered/fell and steps to recover over push phase x impulse (0.1 s pushes, in place).
 
     ``overrides``: settings changed in every variant (``--set``); ``supply_v`` and ``friction_scale``
     switch two limits of the plant (:func:`~mjx_coman.seed000.common.plant`); ``truth_estimate`` the
     estimate (the simulator's true relative positions, see :func:`~mjx_coman.seed000.common.run_batch`).
+    ``phases``: the push phases in [0, 1) instead of ``n_phases`` evenly spaced ones (a finer look at a few).
     """
     imp = np.asarray(sorted(impulses), float)
     if imp.size == 0 or np.any(imp <= 0):
         raise ValueError(f"impulses must be a non-empty list of positive numbers, got {impulses}")
+    if phases is None:
+        phases = np.arange(n_phases) / n_phases
+    phases = np.asarray(phases, float).reshape(-1)
+    if phases.size == 0 or not np.all((phases >= 0) & (phases < 1)):
+        raise ValueError(f"phases must be a non-empty list of numbers in [0, 1), got {list(phases)}")
     env = plant(supply_v, friction_scale)
-    phases = np.arange(n_phases) / n_phases
     seconds = float(push_start_s(push_step + 1 + steps_after, 0.0))
     spec = ro.WalkSpec(seconds=seconds)
     sign = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
@@ -44,7 +49,7 @@ def push_table(impulses=PUSH_TABLE_IMPULSES_NS, n_phases: int = 8, push_step: in
     t0 = time.perf_counter()
     res = run_batch(env, ctrl, pushes, spec, seed, chunk, truth_estimate=truth_estimate)
     wall = time.perf_counter() - t0
-    shape = (len(variants), len(directions), n_phases, imp.size)
+    shape = (len(variants), len(directions), phases.size, imp.size)
     fell = res.fell.reshape(shape)
     s2r = res.steps_to_recover.reshape(shape)
     out = {"impulses_ns": imp.tolist(), "phases": phases.tolist(), "push_step": push_step,

@@ -68,6 +68,12 @@ def test_plant_switches_the_supply_voltage_and_the_ground_friction():
         ex.plant(friction_scale=-1.0)
 
 
+@pytest.mark.parametrize("phases", [[], [0.5, 1.0], [-0.1]])
+def test_push_table_refuses_phases_outside_a_step(phases):
+    with pytest.raises(ValueError, match="phases must be"):
+        ex.push_table(impulses=(1.0,), phases=phases)
+
+
 @pytest.mark.parametrize("args", [["push-table", "--impulses", "0,2"], ["push-table", "--phases", "0"],
                                   ["drag", "--seconds", "-1"], ["identify", "--seconds", "1", "--settle", "5"],
                                   ["push-table", "--set", "hip_attack=2"], ["ten", "--set", "nope=1"],
@@ -77,6 +83,7 @@ def test_plant_switches_the_supply_voltage_and_the_ground_friction():
                                   ["ablate", "--switches", "nope"], ["ablate", "--impulse", "0"],
                                   ["ablate", "--seconds", "3"], ["push-table", "--supply-v", "0"],
                                   ["push-table", "--friction-scale", "nan"], ["push-table", "--truth-estimate", "1"],
+                                  ["push-table", "--phase-list", "0.5,1"], ["push-table", "--phase-list", ","],
                                   ["nope"]])
 def test_bad_arguments_exit_2(args, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -130,8 +137,9 @@ def test_ten_second_walks_drag_scatter_and_speeds():
 
 @pytest.mark.slow
 def test_push_table_with_the_true_state_as_the_estimate():
-    """The estimation switch (``--truth-estimate``): the privileged walk runs and stands a 3 N s push."""
-    out = ex.push_table(impulses=(3.0,), n_phases=2, steps_after=3, directions=("backward",),
+    """The estimation switch (``--truth-estimate``): the privileged walk runs and stands a 3 N s push (at two
+    chosen phases, ``--phase-list``)."""
+    out = ex.push_table(impulses=(3.0,), phases=(0.25, 0.625), steps_after=3, directions=("backward",),
                         variants=("time-projection",), truth_estimate=True, overrides={"zeta": 1.0, "window": 1})
-    assert out["truth_estimate"] and out["rollouts"] == 2
+    assert out["truth_estimate"] and out["rollouts"] == 2 and out["phases"] == [0.25, 0.625]
     assert out["tables"]["time-projection/backward"]["recovered"] == [[1], [1]]
