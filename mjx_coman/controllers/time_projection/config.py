@@ -36,8 +36,12 @@ DEFAULT_STEP_WIDTH_M = 0.1452  # the crouched stance's feet distance (hips 2 x 0
 # against 0.072 and settle a 4.5 N s push after a median of 8 steps against 7 (`seed000 ablate`).
 DEFAULT_DEADZONE = (0.004, 0.004, 0.04, 0.04)
 DEFAULT_KNEE_DEFLECTION_RAD = 0.012  # mu of eq. 21: knee link - motor at full support, open-loop in-place walk
+# At 0.8 (58 N m/rad, nearer the seed's worn 31) the closed loop recovers 2x the open loop at every phase but
+# less in all (forward 4.5 N s at every phase against 6.5): README, "Seed 000", the stance ankle switched.
 DEFAULT_ANKLE_COMPLIANCE = 0.675  # stance ankle keeps 32.5 % of its ~290 N m/rad (see motor_targets_block)
 DEFAULT_HIP_ATTACK = 0.75  # share of the footstep adjustment applied as the seed's attack angle on the swing hip
+# 3 mm further back (-0.033) the in-place walk stops drifting (0.012 against 0.071 m/s) but the open loop turns
+# lopsided and the 2x claim fails forward: README, "Seed 000", the nominal posture switched.
 DEFAULT_PELVIS_OFFSET_M = -0.03  # nominal pelvis over the ankle axis, the pivot of the compliant ankle
 DEFAULT_LEAN_S = 0.03  # 3 mm of pelvis lead per 0.1 m/s: walks within 20 % of 0.1 and 0.2 m/s (0 lean: -19 %, -47 %)
 MAX_SPEED_MPS = 0.3  # the crouched stance leg reaches full extension near here (open_loop docstring)
